@@ -1,0 +1,123 @@
+"""Geometric-condition curves of the inverse kinematics (paper §4.1, Figs. 5, 7–9).
+
+For a given platform pose each leg's attach point ``B_i`` is known, and the rods that can
+reach it form a one-parameter family: a curve in the rod's parameter space.
+
+* prismatic leg (Fig. 5): the tip height above the guide is fixed, ``y = h``;
+* revolute leg (Fig. 8): the tip lies on a circle, ``x^2 + y^2 = r^2``;
+* length leg (Fig. 9): on a unit rod the tip lies on the ray of angle ``beta``,
+  ``y/x = tan(beta)``, and the solution is scaled by ``|AB|/|tip|``.
+
+The curves are extracted as level sets on the dimensionless atlas (one grid for all
+d-modes up to the maximum, see :mod:`flexkin.rod.atlas`) with contourpy's marching
+squares.  Every vertex carries its chart coordinates, d-mode, actuator input and the
+tip force it would exert in the world frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import contourpy
+import numpy as np
+from numpy.typing import NDArray
+
+from ..rod.atlas import get_atlas
+from ..rod.closed_form import kr_from_k, mode_of, tip_chart, to_paper
+from .system import LENGTH, PRISMATIC, REVOLUTE, MechArrays
+
+__all__ = ["LegCurve", "leg_curves"]
+
+
+@dataclass(frozen=True)
+class LegCurve:
+    """One leg's geometric-condition set: a list of polylines (branches).
+
+    Each branch is a dict of equally long arrays: ``v``, ``ku = sin v``, ``phis`` (unified chart),
+    ``k``, ``psi``, ``kr``, ``mode`` (paper chart), ``input`` (SI), ``force`` (n, 2; world,
+    on the rod tip) and ``length`` (free rod length).
+    """
+
+    leg: int
+    kind: int
+    branches: tuple[dict[str, NDArray], ...]
+
+    def __len__(self) -> int:
+        return len(self.branches)
+
+
+def _field(kind: int, A, B, angle: float, length: float):
+    """Scalar field whose zero set is the leg's geometric condition, and a validity mask."""
+    d = B - A
+    if kind == PRISMATIC:
+        h = -np.sin(angle) * d[0] + np.cos(angle) * d[1]
+        return A_y_field(h / length), None
+    if kind == REVOLUTE:
+        r = float(np.hypot(*d))
+        return lambda x, y: np.hypot(x, y) - r / length, None
+    beta = np.arctan2(d[1], d[0]) - angle
+    cb, sb = np.cos(beta), np.sin(beta)
+    return (lambda x, y: x * sb - y * cb), (lambda x, y: x * cb + y * sb > 1e-9)
+
+
+def A_y_field(hh: float):
+    """Field ``y - h`` of a prismatic leg (unit rod)."""
+    return lambda x, y: y - hh
+
+
+def leg_curves(m: MechArrays, B: NDArray[np.float64], max_mode: int) -> list[LegCurve]:
+    """Geometric-condition curves of the three legs for attach points ``B`` (3, 2).
+
+    Parameters
+    ----------
+    m : MechArrays
+    B : (3, 2) world attach points at the imposed pose.
+    max_mode : int
+        Largest d-mode represented.
+    """
+    atlas = get_atlas(max_mode)
+    out = []
+    for i in range(3):
+        kind = int(m.kind[i])
+        A = m.origin[i]
+        length = m.length[i] if kind != LENGTH else 1.0
+        f, mask_f = _field(kind, A, B[i], float(m.angle[i]), length)
+        z = f(atlas.x, atlas.y)
+        if mask_f is not None:
+            z = np.ma.masked_where(~mask_f(atlas.x, atlas.y), z)
+        gen = contourpy.contour_generator(x=atlas.PHIS, y=atlas.V, z=z, name="serial",
+                                          line_type=contourpy.LineType.Separate)
+        branches = []
+        for line in gen.lines(0.0):
+            if len(line) < 2:
+                continue
+            phis, v = line[:, 0], line[:, 1]
+            branches.append(_branch_data(m, i, kind, B[i], v, phis))
+        out.append(LegCurve(i, kind, tuple(branches)))
+    return out
+
+
+def _branch_data(m: MechArrays, i: int, kind: int, B, v, phis) -> dict[str, NDArray]:
+    t = tip_chart(v, phis)
+    ku = np.sin(v)
+    A = m.origin[i]
+    d = B - A
+    if kind == PRISMATIC:
+        alpha = np.full_like(ku, m.angle[i])
+        L = np.full_like(ku, m.length[i])
+        u = np.cos(m.angle[i]) * d[0] + np.sin(m.angle[i]) * d[1] - L * t.x
+    elif kind == REVOLUTE:
+        L = np.full_like(ku, m.length[i])
+        alpha = np.arctan2(d[1], d[0]) - np.arctan2(t.y, t.x)
+        alpha = np.unwrap(alpha)
+        u = alpha
+    else:
+        alpha = np.full_like(ku, m.angle[i])
+        L = np.hypot(*d) / np.hypot(t.x, t.y)
+        u = L
+    psi_w = alpha + t.psi
+    F = m.EI[i] / L**2 * t.R
+    force = np.stack([F * np.cos(psi_w), F * np.sin(psi_w)], -1)
+    k, psi, q = to_paper(ku, phis)
+    return {"v": v, "ku": ku, "phis": phis, "k": k, "psi": psi, "kr": kr_from_k(k, psi), "mode": mode_of(phis),
+            "input": u, "force": force, "length": L}

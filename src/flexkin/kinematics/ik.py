@@ -1,0 +1,178 @@
+"""Full inverse kinematics: every equilibrium for a pose and a load (paper §4).
+
+Procedure (paper §4.1–4.2, made global):
+
+1. per leg, the geometric-condition curves on the atlas of all d-modes <= ``max_mode``
+   (:mod:`flexkin.kinematics.curves`, Fig. 7);
+2. every triple of curve points in platform equilibrium with the load (Eq. 15), found by
+   subdivision over the three polylines in wrench space
+   (:mod:`flexkin.kinematics.equilibrium`);
+3. batch Newton on the full 9-equation system (:mod:`flexkin.kinematics.system`) to a
+   scaled residual <= 1e-10, then de-duplication and sorting by (d-modes, energy).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..numerics import batch_newton
+from ..rod.closed_form import mode_of
+from .curves import leg_curves
+from .equilibrium import equilibrium_triples
+from .results import KinematicsResult, Solution
+from .system import MechArrays, platform_points, project_zrod, residual, rod_states
+
+__all__ = ["ik", "solve_ik", "RESIDUAL_TOL"]
+
+#: acceptance threshold on the scaled residual of a refined solution
+RESIDUAL_TOL = 1e-10
+
+
+def _as_load(mech, load: ArrayLike | None) -> NDArray[np.float64]:
+    w = np.asarray(mech.load if load is None else load, dtype=float).reshape(-1)
+    if w.shape != (3,) or not np.all(np.isfinite(w)):
+        raise ValueError(f"load must be three finite numbers (Fx, Fy, Mz), got {load!r}")
+    return w
+
+
+def _check_mode(max_mode: Any) -> int:
+    if isinstance(max_mode, bool) or not isinstance(max_mode, (int, np.integer)) or not 1 <= max_mode <= 6:
+        raise ValueError(f"max_mode must be an integer between 1 and 6, got {max_mode!r}")
+    return int(max_mode)
+
+
+def finish_solutions(m: MechArrays, z: NDArray, res_norm: NDArray, pose: NDArray, inputs: NDArray,
+                     max_mode: int, key_scale: NDArray) -> list[Solution]:
+    """Filter converged candidates by d-mode, de-duplicate, build :class:`Solution` objects."""
+    modes = mode_of(z[:, 1::2])
+    ok = np.all(modes <= max_mode, axis=1)
+    z, res_norm, pose, inputs = z[ok], res_norm[ok], pose[ok], inputs[ok]
+    # identity of a solution: rods' tip forces and base moments (physical, chart-independent)
+    keys = []
+    for zi, ui in zip(z, inputs):
+        rs = rod_states(m, zi, ui)
+        keys.append(np.concatenate([[r.tip_force[0], r.tip_force[1], r.base_moment / m.L_ref] for r in rs]))
+    keys = np.asarray(keys).reshape(len(z), -1) / m.F_ref
+    pose_scale = np.array([m.L_ref, m.L_ref, 1.0])
+    full = np.concatenate([keys, pose / pose_scale, inputs / key_scale], axis=1) if len(z) else keys
+    order = np.argsort(res_norm, kind="stable")
+    chosen: list[int] = []
+    for i in order:
+        if all(np.max(np.abs(full[i] - full[j])) > 1e-6 for j in chosen):
+            chosen.append(i)
+    sols = []
+    for i in chosen:
+        rs = rod_states(m, z[i], inputs[i])
+        sols.append(Solution(pose=tuple(float(v) for v in pose[i]), inputs=tuple(float(v) for v in inputs[i]),
+                             modes=tuple(r.mode for r in rs), rods=rs, residual=float(res_norm[i]),
+                             zrod=tuple(float(v) for v in z[i])))
+    sols.sort(key=lambda s: (s.modes, round(s.energy / (m.F_ref * m.L_ref), 9), s.inputs, s.pose))
+    return sols
+
+
+def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2) -> KinematicsResult:
+    """All equilibria of ``mech`` at platform ``pose`` under ``load`` (paper §4).
+
+    Parameters
+    ----------
+    mech : Mechanism
+    pose : (x, y, theta)
+        Platform pose, m and **radians**.
+    load : (Fx, Fy, Mz), optional
+        Load wrench on the platform at P; defaults to the mechanism file's ``[load]``.
+    max_mode : int
+        Largest d-mode of any rod (default 2, i.e. the 8 combinations of modes 1–2).
+
+    Returns
+    -------
+    KinematicsResult
+        ``problem == "ik"``; ``solutions`` (possibly empty, then ``message`` explains),
+        ``curves`` holds the geometric-condition curves of step 1.
+    """
+    t0 = time.perf_counter()
+    max_mode = _check_mode(max_mode)
+    pose = np.asarray(pose, dtype=float).reshape(-1)
+    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+        raise ValueError(f"pose must be three finite numbers (x, y, theta), got {pose!r}")
+    w = _as_load(mech, load)
+    m = MechArrays.from_mechanism(mech)
+    B = platform_points(m, pose[None])[0]
+    curves = leg_curves(m, B, max_mode)
+    diag: dict[str, Any] = {"branches": [len(c) for c in curves]}
+
+    # ---- step 2: equilibrium triples on the polylines ------------------------------------
+    wscale = m.wrench_scale()
+    p0s, p1s, zs, us = [], [], [], []
+    for i, c in enumerate(curves):
+        arm = B[i] - pose[:2]
+        P0, P1, Z0, Z1, U0, U1 = [], [], [], [], [], []
+        for br in c.branches:
+            f = br["force"]
+            wr = np.stack([f[:, 0], f[:, 1], arm[0] * f[:, 1] - arm[1] * f[:, 0]], -1) / wscale
+            z = np.stack([br["v"], br["phis"]], -1)
+            P0.append(wr[:-1]); P1.append(wr[1:]); Z0.append(z[:-1]); Z1.append(z[1:])
+            U0.append(br["input"][:-1]); U1.append(br["input"][1:])
+        cat = (lambda L, d: np.concatenate(L) if L else np.zeros((0,) + d))
+        p0s.append(cat(P0, (3,))); p1s.append(cat(P1, (3,)))
+        zs.append((cat(Z0, (2,)), cat(Z1, (2,)))); us.append((cat(U0, ()), cat(U1, ())))
+    target = w / wscale
+    seg, s = equilibrium_triples(p0s, p1s, target)
+    diag["candidates"] = int(len(seg))
+    if len(seg) == 0:
+        return KinematicsResult("ik", mech, tuple(pose), tuple(w), max_mode, (), True,
+                                _empty_message(curves), time.perf_counter() - t0, diag, curves)
+    zrod = np.empty((len(seg), 6))
+    inputs = np.empty((len(seg), 3))
+    for i in range(3):
+        a, b = zs[i][0][seg[:, i]], zs[i][1][seg[:, i]]
+        zrod[:, 2 * i:2 * i + 2] = a + s[:, i:i + 1] * (b - a)
+        ua, ub = us[i][0][seg[:, i]], us[i][1][seg[:, i]]
+        inputs[:, i] = ua + s[:, i] * (ub - ua)
+
+    # ---- step 3: Newton on the full equations ------------------------------------------
+    sols = refine_ik(m, pose, w, zrod, inputs, max_mode, diag)
+    msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
+    return KinematicsResult("ik", mech, tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode,
+                            tuple(sols), True, msg, time.perf_counter() - t0, diag, curves)
+
+
+def refine_ik(m: MechArrays, pose: NDArray, w: NDArray, zrod: NDArray, inputs: NDArray, max_mode: int,
+              diag: dict[str, Any] | None = None) -> list[Solution]:
+    """Newton-refine IK candidates (unknowns: rod charts and inputs) and build solutions."""
+    n = len(zrod)
+    P = np.broadcast_to(pose, (n, 3))
+
+    def f(x: NDArray) -> NDArray:
+        k = len(x)
+        return residual(m, x[:, :6], np.broadcast_to(pose, (k, 3)), x[:, 6:], w)
+
+    def project(x: NDArray) -> NDArray:
+        x = x.copy()
+        x[:, :6] = project_zrod(x[:, :6])
+        return x
+
+    x0 = np.concatenate([zrod, inputs], axis=1)
+    cap = np.array([0.2, 0.5] * 3 + [0.2 * m.L_ref if k != 1 else 0.3 for k in m.kind])
+    res = batch_newton(f, x0, tol=1e-13, project=project, max_step=cap)
+    good = res.residual <= RESIDUAL_TOL
+    if diag is not None:
+        diag["converged"] = int(np.count_nonzero(good))
+    x = res.z[good]
+    key_scale = np.array([m.L_ref if k != 1 else 1.0 for k in m.kind])
+    return finish_solutions(m, x[:, :6], res.residual[good], P[good], x[:, 6:], max_mode, key_scale)
+
+
+def _empty_message(curves) -> str:
+    empty = [c.leg + 1 for c in curves if len(c) == 0]
+    if empty:
+        return f"pose unreachable: no rod of leg(s) {', '.join(map(str, empty))} can reach its platform point"
+    return "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
+
+
+def solve_ik(*args: Any, **kwargs: Any) -> KinematicsResult:
+    """Alias of :func:`ik`."""
+    return ik(*args, **kwargs)

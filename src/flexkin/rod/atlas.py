@@ -1,0 +1,100 @@
+"""Dimensionless atlas of all clamped–pinned rods up to a d-mode (paper Figs. 2, 6).
+
+The atlas samples the unified chart ``(ku = sin v, phis)`` of :mod:`flexkin.rod.closed_form` on a
+tensor grid and stores the unit-rod tip quantities.  Because every rod is a scaled unit rod
+(tip ~ L, force ~ EI/L**2), one atlas per maximum d-mode serves every rod of every
+mechanism: the geometric-condition curves of the inverse kinematics (Fig. 7) are level
+sets on it and the single-rod inverse problem searches its triangles.
+
+Grid design: ``ku = sin(v)`` with ``v`` uniform plus a logarithmic refinement towards
+``|ku| -> 1`` (where the tip force grows like ``log(1/k')**2``); ``phis`` uniform from
+``pi/2`` (unloaded straight rod) down to ``-(Q - 1) pi - pi/2`` (end of d-mode Q).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .closed_form import HALF_PI, tip_chart
+
+__all__ = ["Atlas", "get_atlas", "KPRIME_MIN"]
+
+#: smallest complementary modulus sqrt(1 - k^2) sampled; rods beyond it (extreme loops,
+#: dimensionless force R L^2/EI beyond ~ (2 q K(k))^2 ~ 1000 q^2) are out of scope.
+KPRIME_MIN = 1e-7
+
+
+def _v_nodes(n_uniform: int = 121, n_log: int = 20) -> NDArray[np.float64]:
+    """Nodes of the angular chart variable ``v`` (``ku = sin v``, ``k' = cos v``)."""
+    v_edge = np.arccos(1e-2)  # k' = 1e-2
+    v = np.linspace(-v_edge, v_edge, n_uniform)
+    kp = np.logspace(np.log10(1e-2), np.log10(KPRIME_MIN), n_log + 1)[1:]
+    v_end = np.arccos(kp)
+    return np.concatenate([-v_end[::-1], v, v_end])
+
+
+def _phis_nodes(max_mode: int, per_pi: int = 96) -> NDArray[np.float64]:
+    lo = -(max_mode - 1) * np.pi - HALF_PI
+    n = per_pi * max_mode + 1
+    # the first node sits just below pi/2 (pi/2 itself is the degenerate straight rod)
+    nodes = np.linspace(HALF_PI, lo, n)
+    nodes[0] = HALF_PI - 1e-3
+    return nodes
+
+
+@dataclass(frozen=True)
+class Atlas:
+    """Unit-rod tip quantities on a ``(ku, phis)`` grid; arrays have shape (n_k, n_phi)."""
+
+    max_mode: int
+    v: NDArray[np.float64]
+    ku: NDArray[np.float64]
+    phis: NDArray[np.float64]
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    theta: NDArray[np.float64]
+    R: NDArray[np.float64]
+    psi: NDArray[np.float64]
+    m0: NDArray[np.float64]
+    energy: NDArray[np.float64]
+
+    @property
+    def V(self) -> NDArray[np.float64]:
+        """``v`` broadcast to the grid."""
+        return np.broadcast_to(self.v[:, None], self.x.shape)
+
+    @property
+    def KU(self) -> NDArray[np.float64]:
+        """``ku`` broadcast to the grid."""
+        return np.broadcast_to(self.ku[:, None], self.x.shape)
+
+    @property
+    def PHIS(self) -> NDArray[np.float64]:
+        """``phis`` broadcast to the grid."""
+        return np.broadcast_to(self.phis[None, :], self.x.shape)
+
+    @property
+    def phis_min(self) -> float:
+        """Lower end of the chart (end of d-mode ``max_mode``)."""
+        return -(self.max_mode - 1) * np.pi - HALF_PI
+
+
+@lru_cache(maxsize=8)
+def get_atlas(max_mode: int) -> Atlas:
+    """Atlas of all rods with d-mode <= ``max_mode`` (cached per process)."""
+    if max_mode < 1:
+        raise ValueError(f"max_mode must be >= 1, got {max_mode}")
+    v = _v_nodes()
+    phis = _phis_nodes(max_mode)
+    V, PH = np.meshgrid(v, phis, indexing="ij")
+    t = tip_chart(V, PH)
+    arrays = {}
+    for name in ("x", "y", "theta", "R", "psi", "m0", "energy"):
+        a = np.ascontiguousarray(getattr(t, name))
+        a.setflags(write=False)
+        arrays[name] = a
+    return Atlas(max_mode=max_mode, v=v, ku=np.sin(v), phis=phis, **arrays)

@@ -1,0 +1,317 @@
+"""Closed-form clamped–pinned Kirchhoff rod (paper §2, Eqs. 8–14).
+
+Conventions
+-----------
+The rod is clamped at the origin of its *local frame* with its tangent along +x and
+pinned at its tip (zero tip moment).  ``(R, psi)`` are the magnitude and direction,
+in the local frame, of the force applied **on the rod tip by the platform**; it equals
+the (constant) internal force ``n`` of Eq. (7), so that Eq. (8) reads
+``theta'' = (R/EI) sin(theta - psi)``.  A compressive axial tip load has ``psi = pi``.
+
+The paper's substitution behind Eqs. (9)–(13) is
+
+    cos((theta - psi)/2) = k sin(phi),   sin((theta - psi)/2) = -sqrt(1 - k^2 sin^2 phi),
+    theta' = 2 lambda k cos(phi),        phi' = lambda sqrt(1 - k^2 sin^2 phi),
+
+with ``lambda = sqrt(R/EI)``.  Hence the base moment is ``m0 = 2 EI lambda k cos(phi1)``
+and, since ``phi1 = arcsin(cos(psi/2)/k)`` lies in [-pi/2, pi/2], **the sign of k is the
+sign of the base moment** (k > 0: the rod leaves the clamp curving counter-clockwise).
+The continuous tangent angle stays in ``(psi - 2 pi, psi)``, so with ``theta(0) = 0`` the
+force direction satisfies ``psi`` in [0, 2 pi].
+
+Two charts of the same family of rods are used:
+
+* the paper's chart ``(k, psi, q)`` with ``|k_min| = |cos(psi/2)| <= |k| <= 1`` and the
+  d-mode ``q`` (Eqs. 10–11), and its rectangular variant ``(k_r, psi)`` of Eq. (14);
+* the *unified chart* ``(ku, phis)``: shifting ``phi`` by ``(q - 1) pi`` puts every tip at
+  ``phi = pi/2`` and the clamp at ``phis = phi1 - (q - 1) pi``, with
+  ``ku = (-1)**(q - 1) k``.  Then ``cos(psi/2) = ku sin(phis)``, so ``(ku, phis)`` with
+  ``-1 < ku < 1`` and ``phis <= pi/2`` determines the rod uniquely *for every d-mode at
+  once*: the d-mode is ``q = ceil((pi/2 - phis)/pi)``, and a rod that changes mode moves
+  continuously across the lines ``phis = -pi/2 - n pi`` (where its base moment vanishes).
+  The unloaded straight rod is the line ``phis = pi/2`` (``R = 0``), and ``ku = 0`` is the
+  straight rod under axial compression (``psi = pi``) of any magnitude.
+
+All functions here are pure, vectorised over numpy arrays, and dimensionless unless they
+take ``L`` and ``EI``: the tip position scales with ``L``, the force with ``EI/L**2``, the
+base moment and the energy with ``EI/L``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.special import ellipe, ellipeinc, ellipj, ellipk, ellipkinc, elliprd, elliprf
+
+__all__ = [
+    "ellipf",
+    "ellipe_inc",
+    "mode_of",
+    "to_unified",
+    "to_paper",
+    "phi1_of",
+    "k_min",
+    "kr_from_k",
+    "k_from_kr",
+    "tip_unit",
+    "tip_chart",
+    "rod_tip",
+    "rod_shape",
+    "RodTipArrays",
+]
+
+HALF_PI = 0.5 * np.pi
+
+
+# ----------------------------------------------------------------------------------------
+# Elliptic integrals for any real amplitude (scipy uses the parameter m = k**2)
+# ----------------------------------------------------------------------------------------
+def ellipf(phi: ArrayLike, m: ArrayLike) -> NDArray[np.float64]:
+    """Incomplete elliptic integral of the first kind F(phi | m) for any real ``phi``.
+
+    Uses the quasi-periodicity F(phi + n pi) = F(phi) + 2 n K(m) so that the reduced
+    amplitude handed to :func:`scipy.special.ellipkinc` lies in [-pi/2, pi/2].
+    """
+    phi = np.asarray(phi, dtype=float)
+    n = np.round(phi / np.pi)
+    red = phi - n * np.pi
+    out = ellipkinc(red, m)
+    return np.where(n != 0, out + 2.0 * n * ellipk(m), out)
+
+
+def ellipe_inc(phi: ArrayLike, m: ArrayLike) -> NDArray[np.float64]:
+    """Incomplete elliptic integral of the second kind E(phi | m) for any real ``phi``."""
+    phi = np.asarray(phi, dtype=float)
+    n = np.round(phi / np.pi)
+    red = phi - n * np.pi
+    out = ellipeinc(red, m)
+    return np.where(n != 0, out + 2.0 * n * ellipe(m), out)
+
+
+# ----------------------------------------------------------------------------------------
+# Charts
+# ----------------------------------------------------------------------------------------
+def mode_of(phis: ArrayLike) -> NDArray[np.int64]:
+    """d-mode of a rod from its unified clamp amplitude ``phis`` (>= 1).
+
+    ``q`` counts the inflection points ``phi = pi/2 - n pi`` in ``(phis, pi/2]``: the tip
+    always counts, a base inflection (zero base moment, ``phis = -pi/2 - n pi``) does not.
+    """
+    phis = np.asarray(phis, dtype=float)
+    q = np.ceil((HALF_PI - phis) / np.pi - 1e-13)
+    return np.maximum(q, 1).astype(np.int64)
+
+
+def k_min(psi: ArrayLike) -> NDArray[np.float64]:
+    """Smallest admissible ``|k|`` for a force direction ``psi``: ``|cos(psi/2)|`` (Eq. 10)."""
+    return np.abs(np.cos(0.5 * np.asarray(psi, dtype=float)))
+
+
+def phi1_of(k: ArrayLike, psi: ArrayLike) -> NDArray[np.float64]:
+    """Clamp amplitude of Eq. (10), ``phi1 = arcsin(cos(psi/2)/k)`` (principal branch)."""
+    k = np.asarray(k, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(k != 0, np.cos(0.5 * np.asarray(psi, dtype=float)) / np.where(k != 0, k, 1.0), 0.0)
+    return np.arcsin(np.clip(ratio, -1.0, 1.0))
+
+
+def to_unified(k: ArrayLike, psi: ArrayLike, q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Paper chart ``(k, psi, q)`` -> unified chart ``(ku, phis)``."""
+    q = np.asarray(q)
+    k = np.asarray(k, dtype=float)
+    sign = np.where(q % 2 == 1, 1.0, -1.0)
+    phis = phi1_of(k, psi) - (q - 1) * np.pi
+    return sign * k, phis
+
+
+def to_paper(ku: ArrayLike, phis: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """Unified chart ``(ku, phis)`` -> paper chart ``(k, psi, q)`` with psi in [0, 2 pi]."""
+    ku = np.asarray(ku, dtype=float)
+    phis = np.asarray(phis, dtype=float)
+    q = mode_of(phis)
+    sign = np.where(q % 2 == 1, 1.0, -1.0)
+    c = np.clip(ku * np.sin(phis), -1.0, 1.0)
+    psi = 2.0 * np.arccos(c)
+    return sign * ku, psi, q
+
+
+def kr_from_k(k: ArrayLike, psi: ArrayLike) -> NDArray[np.float64]:
+    """Rectangular parameter of Eq. (14): ``k_r = sign(k) (|k| - |k_min|)/(1 - |k_min|)``."""
+    k = np.asarray(k, dtype=float)
+    km = k_min(psi)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        kr = np.where(km < 1.0, (np.abs(k) - km) / (1.0 - km), 0.0)
+    return np.copysign(np.clip(kr, 0.0, 1.0), k)
+
+
+def k_from_kr(kr: ArrayLike, psi: ArrayLike) -> NDArray[np.float64]:
+    """Inverse of Eq. (14).  ``k_r = -0.0`` and ``+0.0`` select the two sides ``k = -/+ k_min``."""
+    kr = np.asarray(kr, dtype=float)
+    km = k_min(psi)
+    return np.copysign(km + np.abs(kr) * (1.0 - km), kr)
+
+
+# ----------------------------------------------------------------------------------------
+# Tip quantities in the unified chart
+# ----------------------------------------------------------------------------------------
+class RodTipArrays:
+    """Dimensionless tip quantities of unit rods (L = 1, EI = 1) as parallel arrays.
+
+    Attributes
+    ----------
+    x, y : tip position in the local frame (Eqs. 12–13 at ``phi2``).
+    theta : tangent angle at the tip (rad, continuous value in ``(psi - 2 pi, psi)``).
+    R : tip force magnitude (Eq. 9), ``R = Phi**2`` with ``Phi = lambda L``.
+    psi : tip force direction in the local frame (rad, in [0, 2 pi]).
+    m0 : base moment ``EI theta'(0)``.
+    energy : bending energy ``(EI/2) int theta'^2 ds``.
+    Phi : ``lambda L = F(k, phi2) - F(k, phi1)``.
+    """
+
+    __slots__ = ("x", "y", "theta", "R", "psi", "m0", "energy", "Phi")
+
+    def __init__(self, x, y, theta, R, psi, m0, energy, Phi):  # noqa: D107
+        self.x, self.y, self.theta, self.R = x, y, theta, R
+        self.psi, self.m0, self.energy, self.Phi = psi, m0, energy, Phi
+
+    @property
+    def fx(self) -> NDArray[np.float64]:
+        """Local x component of the force on the tip."""
+        return self.R * np.cos(self.psi)
+
+    @property
+    def fy(self) -> NDArray[np.float64]:
+        """Local y component of the force on the tip."""
+        return self.R * np.sin(self.psi)
+
+
+def _carlson_fe(phi: NDArray[np.float64], m: NDArray[np.float64], kp2: NDArray[np.float64]):
+    """F(phi|m) and E(phi|m) for any real ``phi`` via Carlson's R_F, R_D.
+
+    ``kp2 = 1 - m`` is passed separately so that rods near ``|k| = 1`` keep full precision:
+    ``1 - m sin^2 phi = cos^2 phi + kp2 sin^2 phi`` (DLMF 19.25.5, 19.25.9).
+    """
+    n = np.round(phi / np.pi)
+    r = phi - n * np.pi
+    s, c = np.sin(r), np.cos(r)
+    c2, s2 = c * c, s * s
+    d2 = c2 + kp2 * s2
+    rf = elliprf(c2, d2, 1.0)
+    rd = elliprd(c2, d2, 1.0)
+    F = s * rf
+    E = s * rf - (m / 3.0) * s * s2 * rd
+    Kc = elliprf(0.0, kp2, 1.0)
+    Ec = Kc - (m / 3.0) * elliprd(0.0, kp2, 1.0)
+    return F + 2.0 * n * Kc, E + 2.0 * n * Ec, Kc, Ec
+
+
+def tip_unit(ku: ArrayLike, phis: ArrayLike, kprime: ArrayLike | None = None) -> RodTipArrays:
+    """Tip quantities of a unit rod (L = EI = 1) in the unified chart.
+
+    Closed form of Eqs. (9), (12), (13) evaluated at ``phi2`` (where ``cos phi2 = 0``),
+    plus the base moment ``m0 = 2 lambda k cos(phi1)`` and the elastic energy
+
+        U = (EI/2) int theta'^2 ds = 2 EI lambda [ (E(phi2) - E(phi1)) - (1 - k^2) (F(phi2) - F(phi1)) ],
+
+    which follows from ``k^2 cos^2 phi / Delta = Delta - (1 - k^2)/Delta``.
+
+    Parameters
+    ----------
+    ku : array_like
+        Unified modulus, ``-1 < ku < 1``.
+    phis : array_like
+        Unified clamp amplitude, ``phis < pi/2``.
+    kprime : array_like, optional
+        ``sqrt(1 - ku**2)`` if known more accurately than from ``ku`` (rods near
+        ``|k| = 1``); see :func:`tip_chart`.
+    """
+    ku = np.asarray(ku, dtype=float)
+    phis = np.asarray(phis, dtype=float)
+    m = ku * ku
+    if kprime is None:
+        kp2 = np.maximum((1.0 - ku) * (1.0 + ku), 0.0)
+    else:
+        kp2 = np.asarray(kprime, dtype=float) ** 2
+    F1, E1, Kc, Ec = _carlson_fe(phis, m, kp2)
+    Phi = Kc - F1  # lambda L, Eq. (9)
+    DE = Ec - E1
+    c = np.clip(ku * np.sin(phis), -1.0, 1.0)  # cos(psi/2)
+    s = np.sqrt(np.maximum(1.0 - c * c, 0.0))  # sin(psi/2) >= 0
+    cpsi = 2.0 * c * c - 1.0
+    spsi = 2.0 * c * s
+    cph = np.cos(phis)
+    G = 2.0 * DE - Phi
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / Phi
+        x = -(G * cpsi - 2.0 * ku * spsi * cph) * inv  # Eq. (12) at phi2
+        y = -(G * spsi + 2.0 * ku * cpsi * cph) * inv  # Eq. (13) at phi2
+    psi = 2.0 * np.arctan2(s, c)
+    theta = psi + 2.0 * np.arctan2(-np.sqrt(kp2), ku)
+    m0 = 2.0 * ku * Phi * cph
+    energy = 2.0 * Phi * (DE - kp2 * Phi)
+    straight = Phi <= 0.0
+    if np.any(straight):  # the unloaded straight rod (phis = pi/2)
+        x = np.where(straight, 1.0, x)
+        y = np.where(straight, 0.0, y)
+        theta = np.where(straight, 0.0, theta)
+    return RodTipArrays(x, y, theta, Phi * Phi, psi, m0, energy, Phi)
+
+
+def tip_chart(v: ArrayLike, phis: ArrayLike) -> RodTipArrays:
+    """:func:`tip_unit` in the angular chart ``ku = sin(v)``, ``k' = cos(v)``.
+
+    The solvers iterate on ``v`` rather than ``ku``: near ``|k| = 1`` (tight loops, strong
+    tension) ``k'`` then keeps its relative precision and so does the tip force.
+    """
+    v = np.asarray(v, dtype=float)
+    return tip_unit(np.sin(v), phis, np.cos(v))
+
+
+def rod_tip(ku: ArrayLike, phis: ArrayLike, L: ArrayLike = 1.0, EI: ArrayLike = 1.0) -> RodTipArrays:
+    """Tip quantities of a rod of length ``L`` and bending stiffness ``EI`` (local frame)."""
+    t = tip_unit(ku, phis)
+    L = np.asarray(L, dtype=float)
+    EI = np.asarray(EI, dtype=float)
+    return RodTipArrays(
+        t.x * L, t.y * L, t.theta, t.R * EI / L**2, t.psi, t.m0 * EI / L, t.energy * EI / L, t.Phi
+    )
+
+
+def rod_shape(
+    ku: float, phis: float, L: float = 1.0, EI: float = 1.0, n: int = 101
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Deformed shape sampled uniformly in arc length (Eqs. 12–13), local frame.
+
+    The amplitude along the rod is the Jacobi amplitude
+    ``phi(s) = am(F(phis) + lambda s | k^2)`` because ``phi' = lambda Delta(phi)``.
+
+    Returns
+    -------
+    s, x, y, theta, moment : ndarray
+        Arc length, position, tangent angle and bending moment ``EI theta'(s)``.
+    """
+    ku = float(ku)
+    phis = float(phis)
+    m = ku * ku
+    s = np.linspace(0.0, L, n)
+    t = tip_unit(ku, phis)
+    Phi = float(t.Phi)
+    if Phi <= 0.0:
+        z = np.zeros_like(s)
+        return s, s.copy(), z, z.copy(), z.copy()
+    F1 = float(ellipf(phis, m))
+    E1 = float(ellipe_inc(phis, m))
+    u = F1 + Phi * s / L
+    phi = ellipj(u, m)[3]
+    c = np.clip(ku * np.sin(phis), -1.0, 1.0)
+    sn = np.sqrt(max(1.0 - c * c, 0.0))
+    cpsi, spsi = 2.0 * c * c - 1.0, 2.0 * c * sn
+    G = 2.0 * (ellipe_inc(phi, m) - E1) - (u - F1)
+    dc = np.cos(phi) - np.cos(phis)
+    scale = L / Phi
+    x = -scale * (cpsi * G + 2.0 * ku * spsi * dc)  # Eq. (12)
+    y = -scale * (spsi * G - 2.0 * ku * cpsi * dc)  # Eq. (13)
+    delta = np.sqrt(np.maximum(1.0 - m * np.sin(phi) ** 2, 0.0))
+    theta = float(t.psi) + 2.0 * np.arctan2(-delta, ku * np.sin(phi))
+    moment = EI * 2.0 * (Phi / L) * ku * np.cos(phi)
+    return s, x, y, theta, moment

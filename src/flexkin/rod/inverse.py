@@ -1,0 +1,193 @@
+"""Single-rod inverse problem: every equilibrium of a rod whose tip is pinned at a point.
+
+Given the clamp (point and tangent angle), the rod (L, EI) and the tip point, the two
+tip equations ``L (x, y)(ku, phis) = tip_local`` are solved globally:
+
+1. every triangle of the atlas grid (two per cell) whose image under the unit-rod tip
+   map contains the target (barycentric test with a small tolerance) yields a start;
+2. batch damped Newton on the closed form refines every start to machine precision;
+3. converged roots are de-duplicated and sorted by (d-mode, energy).
+
+This is the paper's Fig. 19 experiment (clamp on a linear actuator, tip on a dynamometer)
+and the building block of the kinematics.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..numerics import batch_newton
+from .atlas import get_atlas
+from .closed_form import mode_of, tip_chart
+from .state import RodState, project_chart, rot
+
+__all__ = ["RodInverseResult", "solve_rod", "atlas_starts"]
+
+
+@dataclass(frozen=True)
+class RodInverseResult:
+    """All equilibria of a rod with a pinned tip.
+
+    Attributes
+    ----------
+    solutions : tuple of RodState, sorted by (mode, energy).
+    residuals : tuple of float, tip-position error of each solution (m).
+    tip, clamp, clamp_angle, length, EI, max_mode : the problem data (SI, rad).
+    message : str, a one-line explanation when there is no solution.
+    elapsed : float, seconds.
+    """
+
+    solutions: tuple[RodState, ...]
+    residuals: tuple[float, ...]
+    tip: tuple[float, float]
+    clamp: tuple[float, float]
+    clamp_angle: float
+    length: float
+    EI: float
+    max_mode: int
+    message: str = ""
+    elapsed: float = 0.0
+    diagnostics: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+
+    def __len__(self) -> int:
+        return len(self.solutions)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (SPEC §4, ``flexkin rod``)."""
+        return {
+            "problem": "rod",
+            "length": self.length,
+            "EI": self.EI,
+            "tip": list(self.tip),
+            "clamp": list(self.clamp),
+            "clamp_angle_deg": float(np.degrees(self.clamp_angle)),
+            "max_mode": self.max_mode,
+            "solutions": [
+                dict(s.to_dict(), residual=r) for s, r in zip(self.solutions, self.residuals)
+            ],
+        }
+
+
+def atlas_starts(target: NDArray[np.float64], max_mode: int, tol: float = 0.02) -> NDArray[np.float64]:
+    """Starting points ``(v, phis)`` from atlas triangles whose image contains ``target``.
+
+    ``target`` is the unit-rod tip ``(x, y)`` in the local frame.
+    """
+    A = get_atlas(max_mode)
+    P = np.stack([A.x, A.y], -1)  # (nk, nphi, 2)
+    p00, p10, p01, p11 = P[:-1, :-1], P[1:, :-1], P[:-1, 1:], P[1:, 1:]
+    KU, PH = A.V, A.PHIS
+    c00 = np.stack([KU[:-1, :-1], PH[:-1, :-1]], -1)
+    c10 = np.stack([KU[1:, :-1], PH[1:, :-1]], -1)
+    c01 = np.stack([KU[:-1, 1:], PH[:-1, 1:]], -1)
+    c11 = np.stack([KU[1:, 1:], PH[1:, 1:]], -1)
+    starts = []
+    for (a, b, c), (ca, cb, cc) in (((p00, p10, p11), (c00, c10, c11)), ((p00, p11, p01), (c00, c11, c01))):
+        e1, e2, d = b - a, c - a, target - a
+        det = e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = (d[..., 0] * e2[..., 1] - d[..., 1] * e2[..., 0]) / det
+            v = (e1[..., 0] * d[..., 1] - e1[..., 1] * d[..., 0]) / det
+        inside = (u >= -tol) & (v >= -tol) & (u + v <= 1 + tol) & np.isfinite(u) & np.isfinite(v)
+        if np.any(inside):
+            uu, vv = np.clip(u[inside], 0, 1), np.clip(v[inside], 0, 1)
+            s = uu + vv
+            uu, vv = np.where(s > 1, uu / s, uu), np.where(s > 1, vv / s, vv)
+            starts.append(ca[inside] + uu[:, None] * (cb[inside] - ca[inside]) + vv[:, None] * (cc[inside] - ca[inside]))
+    if not starts:
+        return np.zeros((0, 2))
+    return np.concatenate(starts)
+
+
+def _project(z: NDArray[np.float64]) -> NDArray[np.float64]:
+    ku, ph = project_chart(z[:, 0], z[:, 1])
+    return np.stack([ku, ph], -1)
+
+
+def unique_rows(z: NDArray[np.float64], tol: float) -> NDArray[np.int64]:
+    """Indices of the first occurrence of each cluster of rows closer than ``tol`` (inf-norm)."""
+    keep: list[int] = []
+    for i in range(len(z)):
+        if all(np.max(np.abs(z[i] - z[j])) > tol for j in keep):
+            keep.append(i)
+    return np.asarray(keep, dtype=np.int64)
+
+
+def solve_rod(
+    tip: ArrayLike,
+    length: float,
+    EI: float,
+    *,
+    clamp: ArrayLike = (0.0, 0.0),
+    clamp_angle: float = 0.0,
+    max_mode: int = 2,
+) -> RodInverseResult:
+    """All equilibria with d-mode <= ``max_mode`` of a rod whose tip is pinned at ``tip``.
+
+    Parameters
+    ----------
+    tip : (2,) array_like
+        Pinned tip point, world frame (m).
+    length, EI : float
+        Rod length (m, > 0) and bending stiffness (N m^2, > 0).
+    clamp : (2,) array_like
+        Clamp point (m).
+    clamp_angle : float
+        Clamp tangent angle (rad).
+    max_mode : int
+        Largest d-mode searched (>= 1).
+
+    Returns
+    -------
+    RodInverseResult
+        ``solutions`` may be empty (then ``message`` says why); never raises for an
+        unreachable tip.
+    """
+    t0 = time.perf_counter()
+    tip = np.asarray(tip, dtype=float).reshape(2)
+    clamp = np.asarray(clamp, dtype=float).reshape(2)
+    _check_positive(length=length, EI=EI)
+    if not (isinstance(max_mode, (int, np.integer)) and max_mode >= 1):
+        raise ValueError(f"max_mode must be an integer >= 1, got {max_mode!r}")
+    if not (np.all(np.isfinite(tip)) and np.all(np.isfinite(clamp)) and np.isfinite(clamp_angle)):
+        raise ValueError("tip, clamp and clamp_angle must be finite numbers")
+    local = rot(-clamp_angle) @ (tip - clamp) / length
+    base = dict(tip=(float(tip[0]), float(tip[1])), clamp=(float(clamp[0]), float(clamp[1])),
+                clamp_angle=float(clamp_angle), length=float(length), EI=float(EI), max_mode=int(max_mode))
+    dist = float(np.hypot(*local))
+    if dist > 1.0 + 1e-12:
+        return RodInverseResult((), (), message=(
+            f"tip is {dist * length:.6g} m from the clamp, beyond the rod length {length:.6g} m"),
+            elapsed=time.perf_counter() - t0, **base)
+
+    def residual(z: NDArray[np.float64]) -> NDArray[np.float64]:
+        t = tip_chart(z[:, 0], z[:, 1])
+        return np.stack([t.x - local[0], t.y - local[1]], -1)
+
+    starts = atlas_starts(local, max_mode)
+    res = batch_newton(residual, starts, tol=1e-13, project=_project, max_step=np.array([0.2, 0.5]))
+    ok = res.converged & (mode_of(res.z[:, 1]) <= max_mode)
+    z = res.z[ok]
+    order = np.lexsort((z[:, 1], z[:, 0]))
+    z = z[order][unique_rows(z[order], 1e-7)]
+    states = [RodState.from_chart(k, p, length, EI, clamp, clamp_angle) for k, p in z]
+    resid = [float(np.hypot(s.tip[0] - tip[0], s.tip[1] - tip[1])) for s in states]
+    pairs = sorted(zip(states, resid), key=lambda sr: (sr[0].mode, sr[0].energy, sr[0].k))
+    msg = "" if pairs else f"no equilibrium with d-mode <= {max_mode} reaches the tip point"
+    return RodInverseResult(
+        tuple(p[0] for p in pairs), tuple(p[1] for p in pairs), message=msg,
+        elapsed=time.perf_counter() - t0,
+        diagnostics={"starts": int(len(starts)), "converged": int(np.count_nonzero(res.converged))},
+        **base,
+    )
+
+
+def _check_positive(**values: float) -> None:
+    for name, v in values.items():
+        if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
