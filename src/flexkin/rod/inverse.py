@@ -93,7 +93,7 @@ def atlas_starts(target: NDArray[np.float64], max_mode: int, tol: float = 0.02) 
         with np.errstate(divide="ignore", invalid="ignore"):
             u = (d[..., 0] * e2[..., 1] - d[..., 1] * e2[..., 0]) / det
             v = (e1[..., 0] * d[..., 1] - e1[..., 1] * d[..., 0]) / det
-        inside = (u >= -tol) & (v >= -tol) & (u + v <= 1 + tol) & np.isfinite(u) & np.isfinite(v)
+            inside = (u >= -tol) & (v >= -tol) & (u + v <= 1 + tol) & np.isfinite(u) & np.isfinite(v)
         if np.any(inside):
             uu, vv = np.clip(u[inside], 0, 1), np.clip(v[inside], 0, 1)
             s = uu + vv
@@ -102,6 +102,19 @@ def atlas_starts(target: NDArray[np.float64], max_mode: int, tol: float = 0.02) 
     if not starts:
         return np.zeros((0, 2))
     return np.concatenate(starts)
+
+
+def refine_rod(z0: NDArray[np.float64], target: NDArray[np.float64]):
+    """Newton on the unit-rod tip equations from starts ``z0`` (n, 2) in the ``(v, phis)`` chart.
+
+    ``target`` is the unit-rod tip in the local frame.  Returns a
+    :class:`~flexkin.numerics.NewtonResult`.
+    """
+    def residual(z: NDArray[np.float64]) -> NDArray[np.float64]:
+        t = tip_chart(z[:, 0], z[:, 1])
+        return np.stack([t.x - target[0], t.y - target[1]], -1)
+
+    return batch_newton(residual, np.atleast_2d(z0), tol=1e-13, project=_project, max_step=np.array([0.2, 0.5]))
 
 
 def _project(z: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -165,12 +178,8 @@ def solve_rod(
             f"tip is {dist * length:.6g} m from the clamp, beyond the rod length {length:.6g} m"),
             elapsed=time.perf_counter() - t0, **base)
 
-    def residual(z: NDArray[np.float64]) -> NDArray[np.float64]:
-        t = tip_chart(z[:, 0], z[:, 1])
-        return np.stack([t.x - local[0], t.y - local[1]], -1)
-
     starts = atlas_starts(local, max_mode)
-    res = batch_newton(residual, starts, tol=1e-13, project=_project, max_step=np.array([0.2, 0.5]))
+    res = refine_rod(starts, local)
     ok = res.converged & (mode_of(res.z[:, 1]) <= max_mode)
     z = res.z[ok]
     order = np.lexsort((z[:, 1], z[:, 0]))

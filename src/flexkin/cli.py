@@ -1,0 +1,250 @@
+"""Command-line interface: ``flexkin {show, rod, ik} ...`` (SPEC §4).
+
+Thin: parse -> call the library -> print a table or the JSON contract -> write figures.
+User mistakes (bad files, bad numbers) end with one line on stderr and exit status 2;
+"no solution" is an answer (exit 0, explanation on stderr).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from typing import Any, Sequence
+
+import numpy as np
+
+__all__ = ["main"]
+
+EXIT_USAGE = 2
+
+
+class CLIError(Exception):
+    """A user mistake reported as one line and exit status 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # argparse prints usage + message, exit 2
+        self.print_usage(sys.stderr)
+        raise CLIError(f"{self.prog}: {message}")
+
+
+def _finite(name: str):
+    def conv(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name}: expected a number, got {text!r}") from None
+        if not math.isfinite(v):
+            raise argparse.ArgumentTypeError(f"{name}: expected a finite number, got {text!r}")
+        return v
+    conv.__name__ = name
+    return conv
+
+
+def _positive(name: str):
+    base = _finite(name)
+
+    def conv(text: str) -> float:
+        v = base(text)
+        if v <= 0:
+            raise argparse.ArgumentTypeError(f"{name}: must be > 0, got {text!r}")
+        return v
+    conv.__name__ = name
+    return conv
+
+
+def _mode(text: str) -> int:
+    try:
+        q = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--max-mode: expected an integer, got {text!r}") from None
+    if not 1 <= q <= 6:
+        raise argparse.ArgumentTypeError(f"--max-mode: must be between 1 and 6, got {q}")
+    return q
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="flexkin", description="Complete kinematic analysis of planar parallel continuum mechanisms.")
+    p.add_argument("--version", action="version", version=f"flexkin {_version()}")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    s = sub.add_parser("show", help="print a mechanism file and draw it")
+    s.add_argument("mechanism", help="mechanism file (TOML, SPEC §3)")
+    s.add_argument("--plot", metavar="FILE", help="write a drawing of the mechanism")
+
+    r = sub.add_parser("rod", help="every equilibrium of one rod with a pinned tip (paper Fig. 19)")
+    r.add_argument("--length", type=_positive("--length"), help="rod length L [m]")
+    r.add_argument("--EI", type=_positive("--EI"), help="bending stiffness [N m^2]")
+    r.add_argument("--E", type=_positive("--E"), help="Young's modulus [Pa] (with --radius)")
+    r.add_argument("--radius", type=_positive("--radius"), help="radius of the circular section [m]")
+    r.add_argument("--tip", nargs=2, type=_finite("--tip"), metavar=("X", "Y"), help="pinned tip point [m]")
+    r.add_argument("--clamp-angle", type=_finite("--clamp-angle"), default=0.0, metavar="DEG",
+                   help="clamp tangent angle [deg] (default 0)")
+    r.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode (default 2)")
+    r.add_argument("--sweep", action="store_true",
+                   help="sweep the tip abscissa at fixed height (defaults: the paper's Fig. 19 set-up)")
+    r.add_argument("--tip-y", type=_finite("--tip-y"), help="sweep: tip height [m] (default -0.2125)")
+    r.add_argument("--x-range", nargs=2, type=_finite("--x-range"), metavar=("X0", "X1"),
+                   help="sweep: tip abscissa range [m] (default 0.86 0.51)")
+    r.add_argument("--points", type=int, default=36, help="sweep: number of abscissae (default 36)")
+    r.add_argument("--json", action="store_true", help="print the JSON result")
+    r.add_argument("--plot", metavar="FILE", help="write a figure (shapes, or force vs x for --sweep)")
+
+    for name, helptext in (("ik", "inverse kinematics: every equilibrium at a platform pose"),):
+        k = sub.add_parser(name, help=helptext)
+        k.add_argument("mechanism", help="mechanism file (TOML, SPEC §3)")
+        k.add_argument("--pose", nargs=3, type=_finite("--pose"), metavar=("X", "Y", "THETA"), required=True,
+                       help="platform pose: m, m, deg")
+        k.add_argument("--load", nargs=3, type=_finite("--load"), metavar=("FX", "FY", "MZ"),
+                       help="load wrench at P [N, N, N m] (default: the file's [load] or zero)")
+        k.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode of any rod (default 2)")
+        k.add_argument("--json", action="store_true", help="print the SPEC §4 JSON object")
+        k.add_argument("--plot", metavar="FILE", help="figure with one panel per solution")
+        k.add_argument("--curves", metavar="FILE", help="figure of the geometric-condition curves (Fig. 7)")
+    return p
+
+
+def _version() -> str:
+    from . import __version__
+
+    return __version__
+
+
+def _load_mech(path: str):
+    from .errors import MechanismError
+    from .mechanism import load_mechanism
+
+    try:
+        return load_mechanism(path)
+    except MechanismError as e:
+        raise CLIError(str(e)) from None
+
+
+def _dump(obj: dict[str, Any]) -> str:
+    try:
+        return json.dumps(obj, indent=2, allow_nan=False)
+    except ValueError as e:  # a NaN must never reach the JSON contract
+        raise RuntimeError(f"internal error: non-finite number in the JSON output ({e})") from e
+
+
+def _cmd_show(a) -> int:
+    mech = _load_mech(a.mechanism)
+    print(mech.summary())
+    if a.plot:
+        from .plot.mechanism import plot_mechanism_file
+
+        plot_mechanism_file(mech, a.plot)
+        print(f"figure written to {a.plot}", file=sys.stderr)
+    return 0
+
+
+def _rod_EI(a) -> float:
+    if a.EI is not None:
+        if a.E is not None or a.radius is not None:
+            raise CLIError("flexkin rod: give either --EI or --E with --radius, not both")
+        return a.EI
+    if a.E is not None and a.radius is not None:
+        return a.E * math.pi * a.radius**4 / 4.0
+    if a.sweep and a.E is None and a.radius is None:
+        from .rod.sweep import FIG19
+
+        return FIG19["E"] * math.pi * FIG19["radius"] ** 4 / 4.0
+    raise CLIError("flexkin rod: the bending stiffness is missing: give --EI, or --E and --radius")
+
+
+def _cmd_rod(a) -> int:
+    from .rod import solve_rod
+    from .rod.sweep import FIG19, rod_sweep
+
+    EI = _rod_EI(a)
+    if a.sweep:
+        L = a.length if a.length is not None else FIG19["length"]
+        ty = a.tip_y if a.tip_y is not None else FIG19["tip_y"]
+        x0, x1 = a.x_range if a.x_range is not None else (FIG19["x_start"], FIG19["x_end"])
+        if not 2 <= a.points <= 10000:
+            raise CLIError("flexkin rod: --points must be between 2 and 10000")
+        sw = rod_sweep(np.linspace(x0, x1, a.points), ty, L, EI, clamp_angle=math.radians(a.clamp_angle),
+                       max_mode=a.max_mode)
+        if a.json:
+            print(_dump(sw.to_dict()))
+        else:
+            print(f"rod L = {L:g} m, EI = {EI:.6g} N m^2, tip y = {ty:g} m, clamp angle {a.clamp_angle:g} deg")
+            print(sw.table())
+        if a.plot:
+            sw.plot(a.plot)
+            print(f"figure written to {a.plot}", file=sys.stderr)
+        return 0
+    if a.length is None or a.tip is None:
+        raise CLIError("flexkin rod: --length and --tip are required (or use --sweep)")
+    res = solve_rod(a.tip, a.length, EI, clamp_angle=math.radians(a.clamp_angle), max_mode=a.max_mode)
+    if a.json:
+        print(_dump(res.to_dict()))
+    else:
+        print(f"rod L = {a.length:g} m, EI = {EI:.6g} N m^2, tip ({a.tip[0]:g}, {a.tip[1]:g}) m, "
+              f"clamp angle {a.clamp_angle:g} deg: {len(res)} equilibria with d-mode <= {a.max_mode}")
+        if len(res):
+            print(f"{'#':>3} {'mode':>4} {'k':>10} {'psi [deg]':>10} {'Fx [N]':>11} {'Fy [N]':>11} "
+                  f"{'m0 [N m]':>11} {'energy [J]':>11}")
+            for i, s in enumerate(res.solutions, 1):
+                print(f"{i:>3} {s.mode:>4} {s.k:>10.6f} {math.degrees(s.psi):>10.4f} {s.tip_force[0]:>11.5g} "
+                      f"{s.tip_force[1]:>11.5g} {s.base_moment:>11.5g} {s.energy:>11.5g}")
+    if not len(res):
+        print(f"flexkin rod: {res.message}", file=sys.stderr)
+    if a.plot:
+        from .plot.rod import plot_rod_solutions
+
+        plot_rod_solutions(res, a.plot)
+        print(f"figure written to {a.plot}", file=sys.stderr)
+    return 0
+
+
+def _cmd_kinematics(a) -> int:
+    from .kinematics import ik
+
+    mech = _load_mech(a.mechanism)
+    pose = (a.pose[0], a.pose[1], math.radians(a.pose[2]))
+    res = ik(mech, pose, load=a.load, max_mode=a.max_mode)
+    if a.json:
+        print(_dump(res.to_dict()))
+    else:
+        load = ", ".join(f"{v:g}" for v in res.load)
+        print(f"{mech.name}: inverse kinematics at pose ({a.pose[0]:g} m, {a.pose[1]:g} m, {a.pose[2]:g} deg), "
+              f"load ({load}), d-modes <= {res.max_mode}: {len(res)} solution(s) in {res.elapsed:.2f} s")
+        if len(res):
+            print("per d-mode combination: " + ", ".join(f"{k}: {v}" for k, v in sorted(res.by_modes().items())))
+            print(res.table())
+    if not len(res):
+        print(f"flexkin {a.command}: {res.message}", file=sys.stderr)
+    if a.plot:
+        res.plot(a.plot)
+        print(f"figure written to {a.plot}", file=sys.stderr)
+    if getattr(a, "curves", None):
+        from .plot.curves import plot_curves
+
+        plot_curves(res, a.curves)
+        print(f"figure written to {a.curves}", file=sys.stderr)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``flexkin`` command."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    parser = _build_parser()
+    try:
+        a = parser.parse_args(argv)
+        handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics}[a.command]
+        return handler(a)
+    except CLIError as e:
+        print(str(e), file=sys.stderr)
+        return EXIT_USAGE
+    except (ValueError, OSError) as e:  # library argument checks, unwritable figure path
+        print(f"flexkin: {e}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

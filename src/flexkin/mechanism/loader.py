@@ -1,0 +1,360 @@
+"""Reading and validating mechanism files (TOML, SPEC §3).
+
+Every user mistake raises :class:`~flexkin.errors.MechanismError` with one message of the
+form ``"<file>: <key path>: <problem>"``, e.g.
+``examples/x.toml: leg[2].origin: expected a list of two numbers, got 'abc'``.
+Legs are numbered from 1 in key paths, as in the paper (``leg[1]`` is the first
+``[[leg]]`` table).
+
+Rod properties
+--------------
+The ``[rod]`` table (optional) gives defaults; a ``[[leg]]`` table may override any rod key
+(``length``, ``E``, ``radius``, ``EI``).  The bending stiffness is ``EI`` if given, otherwise
+``E * pi * radius**4 / 4``; if both are available they must agree to 1e-9 (relative).  A leg
+that overrides ``E`` or ``radius`` (but not ``EI``) gets its ``EI`` recomputed from them
+instead of inheriting ``[rod].EI``.  ``length`` is required for prismatic and revolute legs
+and ignored for length legs.  ``[limits] max_strain`` requires every leg's ``radius``.
+
+Angles (``angle``, and ``range`` of revolute legs) are degrees in the file and radians in
+the returned :class:`~flexkin.mechanism.model.Mechanism`.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from flexkin.errors import MechanismError
+from flexkin.mechanism.model import ACTUATIONS, Leg, Mechanism, Platform, Rod, circular_EI
+
+__all__ = ["load_mechanism", "mechanism_from_dict"]
+
+_TOP_KEYS = ("name", "rod", "platform", "leg", "load", "limits")
+_ROD_KEYS = ("length", "E", "radius", "EI")
+_LEG_KEYS = ("actuation", "origin", "angle", "range") + _ROD_KEYS
+_PLATFORM_KEYS = ("attach",)
+_LOAD_KEYS = ("force", "moment")
+_LIMITS_KEYS = ("max_strain",)
+_EI_RTOL = 1e-9
+
+
+class _KeyProblem(Exception):
+    """Internal: a problem at a key path; turned into a MechanismError with the file name."""
+
+    def __init__(self, path: str, message: str) -> None:
+        super().__init__(f"{path}: {message}" if path else message)
+
+
+# ---- small typed accessors -----------------------------------------------------------
+def _show(value: Any) -> str:
+    s = repr(value)
+    return s if len(s) <= 60 else s[:57] + "..."
+
+
+def _type_name(value: Any) -> str:
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, dict):
+        return "a table"
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, (int, float)):
+        return "a number"
+    return f"a {type(value).__name__}"
+
+
+def _check_keys(table: dict[str, Any], allowed: tuple[str, ...], path: str) -> None:
+    """Reject unknown keys, with a did-you-mean hint."""
+    lower = {a.lower(): a for a in allowed}
+    for key in table:
+        if key in allowed:
+            continue
+        key = str(key)
+        hint = ""
+        if key.lower() in lower:
+            hint = f" (did you mean {lower[key.lower()]!r}?)"
+        else:
+            close = difflib.get_close_matches(key.lower(), list(lower), n=1, cutoff=0.6)
+            if close:
+                hint = f" (did you mean {lower[close[0]]!r}?)"
+        where = f"{path}.{key}" if path else key
+        known = ", ".join(allowed)
+        raise _KeyProblem(where, f"unknown key{hint}; allowed keys here: {known}")
+
+
+def _table(value: Any, path: str) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise _KeyProblem(path, f"expected a table, got {_type_name(value)} {_show(value)}")
+    return value
+
+
+def _number(value: Any, path: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise _KeyProblem(path, f"expected a number, got {_type_name(value)} {_show(value)}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise _KeyProblem(path, f"expected a finite number, got {v!r}")
+    return v
+
+
+def _positive(value: Any, path: str, unit: str) -> float:
+    v = _number(value, path)
+    if v <= 0.0:
+        raise _KeyProblem(path, f"must be > 0 ({unit}), got {v!r}")
+    return v
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _pair(value: Any, path: str, what: str = "a list of two numbers") -> tuple[float, float]:
+    if not isinstance(value, list) or len(value) != 2 or not all(_is_number(v) for v in value):
+        raise _KeyProblem(path, f"expected {what}, got {_show(value)}")
+    a, b = float(value[0]), float(value[1])
+    if not (math.isfinite(a) and math.isfinite(b)):
+        raise _KeyProblem(path, f"expected finite numbers, got {_show(value)}")
+    return (a, b)
+
+
+def _require(table: dict[str, Any], key: str, path: str, what: str) -> Any:
+    if key not in table:
+        raise _KeyProblem(f"{path}.{key}" if path else key, f"missing ({what})")
+    return table[key]
+
+
+# ---- sections ------------------------------------------------------------------------
+def _rod_values(table: dict[str, Any], path: str) -> dict[str, float]:
+    """Validated numeric rod keys present in ``table``."""
+    out: dict[str, float] = {}
+    units = {"length": "m", "E": "Pa", "radius": "m", "EI": "N m^2"}
+    for key in _ROD_KEYS:
+        if key in table:
+            out[key] = _positive(table[key], f"{path}.{key}", units[key])
+    return out
+
+
+def _resolve_rod(
+    defaults: dict[str, float], overrides: dict[str, float], actuation: str, path: str
+) -> Rod:
+    merged = dict(defaults)
+    merged.update(overrides)
+    origin = {k: ("this [[leg]]" if k in overrides else "[rod]") for k in merged}
+    if "EI" in merged and "EI" not in overrides and ({"E", "radius"} & overrides.keys()):
+        if "E" in merged and "radius" in merged:
+            del merged["EI"]  # EI is recomputed from the leg's own E/radius
+    EI = merged.get("EI")
+    E, radius = merged.get("E"), merged.get("radius")
+    if E is not None and radius is not None:
+        EI_c = circular_EI(E, radius)
+        if EI is None:
+            EI = EI_c
+        elif abs(EI - EI_c) > _EI_RTOL * max(abs(EI), abs(EI_c)):
+            all_rod = not ({"EI", "E", "radius"} & overrides.keys())
+            raise _KeyProblem(
+                "rod.EI" if all_rod else f"{path}.EI",
+                f"EI = {EI:.10g} N m^2 (from {origin['EI']}) disagrees with E*pi*radius**4/4 = "
+                f"{EI_c:.10g} N m^2 (E from {origin['E']}, radius from {origin['radius']}); "
+                "give either EI or E and radius, or make them agree",
+            )
+    if EI is None:
+        missing = "E" if radius is not None else ("radius" if E is not None else "EI")
+        raise _KeyProblem(
+            f"{path}.{missing}",
+            "missing: the bending stiffness needs 'EI', or both 'E' and 'radius', "
+            "in [rod] or in this [[leg]]",
+        )
+    if actuation == "length":
+        length = None  # the input is the free length; a given length is ignored
+    else:
+        if "length" not in merged:
+            raise _KeyProblem(
+                f"{path}.length", f"missing (a {actuation} leg needs the rod length in m, in [rod] or in this [[leg]])"
+            )
+        length = merged["length"]
+    return Rod(length=length, EI=EI, radius=radius, E=E)
+
+
+def _leg(table: Any, i: int, rod_defaults: dict[str, float]) -> Leg:
+    path = f"leg[{i + 1}]"
+    table = _table(table, path)
+    _check_keys(table, _LEG_KEYS, path)
+    act = _require(table, "actuation", path, 'one of "prismatic", "revolute", "length"')
+    if not isinstance(act, str):
+        raise _KeyProblem(f"{path}.actuation", f"expected a string, got {_type_name(act)} {_show(act)}")
+    if act not in ACTUATIONS:
+        close = difflib.get_close_matches(act.lower(), ACTUATIONS, n=1, cutoff=0.5)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise _KeyProblem(
+            f"{path}.actuation",
+            f"unknown actuation {act!r} (expected one of {', '.join(map(repr, ACTUATIONS))}{hint})",
+        )
+    origin = _pair(_require(table, "origin", path, "[x, y] in m"), f"{path}.origin")
+    if act == "revolute":
+        angle_deg = _number(table["angle"], f"{path}.angle") if "angle" in table else 0.0
+    else:
+        angle_deg = _number(
+            _require(table, "angle", path, f"guide direction in degrees, required for {act} legs"),
+            f"{path}.angle",
+        )
+    rng = None
+    if "range" in table:
+        lo, hi = _pair(table["range"], f"{path}.range", "[lo, hi]")
+        unit = "deg" if act == "revolute" else "m"
+        if not lo < hi:
+            raise _KeyProblem(f"{path}.range", f"lower bound must be < upper bound, got [{lo:g}, {hi:g}] {unit}")
+        if act == "length" and lo <= 0.0:
+            raise _KeyProblem(
+                f"{path}.range", f"a length leg's range is a free rod length and must be > 0, got [{lo:g}, {hi:g}] m"
+            )
+        rng = (math.radians(lo), math.radians(hi)) if act == "revolute" else (lo, hi)
+    rod = _resolve_rod(rod_defaults, _rod_values(table, path), act, path)
+    return Leg(actuation=act, origin=origin, angle=math.radians(angle_deg), rod=rod, range=rng)  # type: ignore[arg-type]
+
+
+def _platform(value: Any) -> Platform:
+    table = _table(value, "platform")
+    _check_keys(table, _PLATFORM_KEYS, "platform")
+    pts = _require(table, "attach", "platform", "three points [[x1, y1], [x2, y2], [x3, y3]] in m")
+    if not isinstance(pts, list) or len(pts) != 3:
+        n = f"{len(pts)} entries" if isinstance(pts, list) else _show(pts)
+        raise _KeyProblem("platform.attach", f"expected exactly three points [[x1, y1], [x2, y2], [x3, y3]], got {n}")
+    b = tuple(_pair(p, f"platform.attach[{j + 1}]", "a point [x, y]") for j, p in enumerate(pts))
+    try:
+        return Platform(attach=b)  # type: ignore[arg-type]
+    except MechanismError as exc:  # coincident / collinear points
+        msg = str(exc).removeprefix("platform.attach: ")
+        raise _KeyProblem("platform.attach", msg) from None
+
+
+def _load(value: Any) -> tuple[float, float, float]:
+    table = _table(value, "load")
+    _check_keys(table, _LOAD_KEYS, "load")
+    fx, fy = _pair(table["force"], "load.force", "[Fx, Fy] in N") if "force" in table else (0.0, 0.0)
+    mz = _number(table["moment"], "load.moment") if "moment" in table else 0.0
+    return (fx, fy, mz)
+
+
+def _mechanism(data: Any, default_name: str, source: str | None) -> Mechanism:
+    data = _table(data, "")
+    _check_keys(data, _TOP_KEYS, "")
+    name = data.get("name", default_name)
+    if not isinstance(name, str):
+        raise _KeyProblem("name", f"expected a string, got {_type_name(name)} {_show(name)}")
+    rod_defaults: dict[str, float] = {}
+    if "rod" in data:
+        rod_table = _table(data["rod"], "rod")
+        _check_keys(rod_table, _ROD_KEYS, "rod")
+        rod_defaults = _rod_values(rod_table, "rod")
+    platform = _platform(_require(data, "platform", "", "a [platform] table with 'attach'"))
+    legs_raw = _require(data, "leg", "", "three [[leg]] tables")
+    if isinstance(legs_raw, dict):
+        raise _KeyProblem("leg", "expected three [[leg]] tables, got a single [leg] table (write [[leg]])")
+    if not isinstance(legs_raw, list):
+        raise _KeyProblem("leg", f"expected three [[leg]] tables, got {_type_name(legs_raw)} {_show(legs_raw)}")
+    if len(legs_raw) != 3:
+        raise _KeyProblem("leg", f"expected exactly three [[leg]] tables, got {len(legs_raw)}")
+    legs = tuple(_leg(t, i, rod_defaults) for i, t in enumerate(legs_raw))
+    load = _load(data["load"]) if "load" in data else (0.0, 0.0, 0.0)
+    max_strain = None
+    if "limits" in data:
+        limits = _table(data["limits"], "limits")
+        _check_keys(limits, _LIMITS_KEYS, "limits")
+        if "max_strain" in limits:
+            max_strain = _positive(limits["max_strain"], "limits.max_strain", "dimensionless strain")
+            for i, leg in enumerate(legs):
+                if leg.rod.radius is None:
+                    raise _KeyProblem(
+                        f"leg[{i + 1}].radius",
+                        "missing: limits.max_strain needs the rod radius of every leg (in [rod] or in the [[leg]])",
+                    )
+    try:
+        return Mechanism(
+            name=name, legs=legs, platform=platform, load=load, max_strain=max_strain, source=source
+        )  # type: ignore[arg-type]
+    except MechanismError as exc:  # coincident leg origins etc.; message already has the key path
+        raise _KeyProblem("", str(exc)) from None
+
+
+def _default_name(source: str) -> str:
+    if source.startswith("<"):
+        return "mechanism"
+    return Path(source).stem or "mechanism"
+
+
+# ---- public API ----------------------------------------------------------------------
+def mechanism_from_dict(data: dict[str, Any], source: str = "<dict>") -> Mechanism:
+    """Build a :class:`Mechanism` from a parsed mechanism file (SPEC §3).
+
+    Parameters
+    ----------
+    data : dict
+        The file's content as parsed by :func:`tomllib.loads` (degrees for angles).
+    source : str, optional
+        Name used in error messages (and stored as ``Mechanism.source`` unless it starts
+        with ``"<"``); the default name is its stem.
+
+    Returns
+    -------
+    Mechanism
+
+    Raises
+    ------
+    MechanismError
+        For any invalid content, with a message ``"<source>: <key path>: <problem>"``.
+    """
+    src = str(source)
+    try:
+        return _mechanism(data, _default_name(src), None if src.startswith("<") else src)
+    except _KeyProblem as exc:
+        raise MechanismError(f"{src}: {exc}") from None
+    except MechanismError as exc:
+        raise MechanismError(f"{src}: {exc}") from None
+    except Exception as exc:  # never a traceback for user mistakes
+        raise MechanismError(f"{src}: invalid mechanism description ({type(exc).__name__}: {exc})") from exc
+
+
+def load_mechanism(path: str | os.PathLike[str]) -> Mechanism:
+    """Load and validate a mechanism file (TOML, SPEC §3).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Mechanism file.
+
+    Returns
+    -------
+    Mechanism
+        With angles in radians and ``source`` set to ``str(path)``.
+
+    Raises
+    ------
+    MechanismError
+        If the file cannot be read, is not valid TOML, or describes an invalid mechanism;
+        the message names the file and the offending key.
+    """
+    src = os.fspath(path)
+    src = src if isinstance(src, str) else os.fsdecode(src)
+    try:
+        raw = Path(src).read_bytes()
+    except FileNotFoundError:
+        raise MechanismError(f"{src}: file not found") from None
+    except IsADirectoryError:
+        raise MechanismError(f"{src}: is a directory, not a mechanism file") from None
+    except OSError as exc:
+        raise MechanismError(f"{src}: cannot read file ({exc.strerror or exc})") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise MechanismError(f"{src}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise MechanismError(f"{src}: malformed TOML: {exc}") from None
+    return mechanism_from_dict(data, source=src)
