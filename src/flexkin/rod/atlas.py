@@ -25,10 +25,10 @@ __all__ = ["Atlas", "get_atlas", "KPRIME_MIN"]
 
 #: smallest complementary modulus sqrt(1 - k^2) sampled; rods beyond it (extreme loops,
 #: dimensionless force R L^2/EI beyond ~ (2 q K(k))^2 ~ 1000 q^2) are out of scope.
-KPRIME_MIN = 1e-7
+KPRIME_MIN = 1e-6
 
 
-def _v_nodes(n_uniform: int = 121, n_log: int = 20) -> NDArray[np.float64]:
+def _v_nodes(n_uniform: int = 121, n_log: int = 16) -> NDArray[np.float64]:
     """Nodes of the angular chart variable ``v`` (``ku = sin v``, ``k' = cos v``)."""
     v_edge = np.arccos(1e-2)  # k' = 1e-2
     v = np.linspace(-v_edge, v_edge, n_uniform)

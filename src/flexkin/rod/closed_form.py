@@ -278,12 +278,14 @@ def rod_tip(ku: ArrayLike, phis: ArrayLike, L: ArrayLike = 1.0, EI: ArrayLike = 
 
 
 def rod_shape(
-    ku: float, phis: float, L: float = 1.0, EI: float = 1.0, n: int = 101
+    ku: float, phis: float, L: float = 1.0, EI: float = 1.0, n: int = 101, kprime: float | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Deformed shape sampled uniformly in arc length (Eqs. 12–13), local frame.
 
     The amplitude along the rod is the Jacobi amplitude
-    ``phi(s) = am(F(phis) + lambda s | k^2)`` because ``phi' = lambda Delta(phi)``.
+    ``phi(s) = am(F(phis) + lambda s | k^2)`` because ``phi' = lambda Delta(phi)``; it is
+    taken from :func:`scipy.special.ellipj` and polished by Newton on ``F(phi) = u`` with the
+    Carlson forms, so that rods near ``|k| = 1`` (pass ``kprime``) keep full precision.
 
     Returns
     -------
@@ -293,25 +295,35 @@ def rod_shape(
     ku = float(ku)
     phis = float(phis)
     m = ku * ku
+    kp2 = (1.0 - ku) * (1.0 + ku) if kprime is None else float(kprime) ** 2
     s = np.linspace(0.0, L, n)
-    t = tip_unit(ku, phis)
+    t = tip_unit(ku, phis, None if kprime is None else kprime)
     Phi = float(t.Phi)
     if Phi <= 0.0:
         z = np.zeros_like(s)
         return s, s.copy(), z, z.copy(), z.copy()
-    F1 = float(ellipf(phis, m))
-    E1 = float(ellipe_inc(phis, m))
+    F1, E1, _, _ = _carlson_fe(np.array(phis), m, kp2)
+    F1, E1 = float(F1), float(E1)
     u = F1 + Phi * s / L
     phi = ellipj(u, m)[3]
+    phi[0] = phis
+    for _ in range(8):  # Newton on F(phi) = u, dF/dphi = 1/Delta
+        Fp, _, _, _ = _carlson_fe(phi, m, kp2)
+        delta = np.sqrt(np.cos(phi) ** 2 + kp2 * np.sin(phi) ** 2)
+        step = (Fp - u) * delta
+        phi = phi - step
+        if np.max(np.abs(step)) < 1e-15:
+            break
     c = np.clip(ku * np.sin(phis), -1.0, 1.0)
     sn = np.sqrt(max(1.0 - c * c, 0.0))
     cpsi, spsi = 2.0 * c * c - 1.0, 2.0 * c * sn
-    G = 2.0 * (ellipe_inc(phi, m) - E1) - (u - F1)
+    _, Ep, _, _ = _carlson_fe(phi, m, kp2)
+    G = 2.0 * (Ep - E1) - (u - F1)
     dc = np.cos(phi) - np.cos(phis)
     scale = L / Phi
     x = -scale * (cpsi * G + 2.0 * ku * spsi * dc)  # Eq. (12)
     y = -scale * (spsi * G - 2.0 * ku * cpsi * dc)  # Eq. (13)
-    delta = np.sqrt(np.maximum(1.0 - m * np.sin(phi) ** 2, 0.0))
+    delta = np.sqrt(np.cos(phi) ** 2 + kp2 * np.sin(phi) ** 2)
     theta = float(t.psi) + 2.0 * np.arctan2(-delta, ku * np.sin(phi))
     moment = EI * 2.0 * (Phi / L) * ku * np.cos(phi)
     return s, x, y, theta, moment

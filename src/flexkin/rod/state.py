@@ -109,13 +109,13 @@ class RodState:
 
     def shape(self, n: int = 101) -> NDArray[np.float64]:
         """Deformed centre line in the world frame, shape ``(n, 2)``."""
-        _, x, y, _, _ = rod_shape(self.ku, self.phis, self.length, self.EI, n)
+        _, x, y, _, _ = rod_shape(self.ku, self.phis, self.length, self.EI, n, kprime=np.cos(self.v))
         pts = np.stack([x, y], -1) @ rot(self.clamp_angle).T
         return pts + np.asarray(self.clamp)
 
     def curvature(self, n: int = 201) -> NDArray[np.float64]:
         """Curvature ``theta'(s)`` at ``n`` points uniformly spaced in arc length (1/m)."""
-        _, _, _, _, m = rod_shape(self.ku, self.phis, self.length, self.EI, n)
+        _, _, _, _, m = rod_shape(self.ku, self.phis, self.length, self.EI, n, kprime=np.cos(self.v))
         return m / self.EI
 
     def to_dict(self) -> dict[str, Any]:
