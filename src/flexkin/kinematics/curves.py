@@ -33,7 +33,7 @@ __all__ = ["LegCurve", "leg_curves"]
 class LegCurve:
     """One leg's geometric-condition set: a list of polylines (branches).
 
-    Each branch is a dict of equally long arrays: ``v``, ``ku = sin v``, ``phis`` (unified chart),
+    Each branch is a dict of equally long arrays: ``v``, ``ku = tanh v``, ``phis`` (unified chart),
     ``k``, ``psi``, ``kr``, ``mode`` (paper chart), ``input`` (SI), ``force`` (n, 2; world,
     on the rod tip) and ``length`` (free rod length).
     """
@@ -65,8 +65,15 @@ def A_y_field(hh: float):
     return lambda x, y: y - hh
 
 
-def leg_curves(m: MechArrays, B: NDArray[np.float64], max_mode: int) -> list[LegCurve]:
+def leg_curves(m: MechArrays, B: NDArray[np.float64], max_mode: int, *, force_tol: float = 0.05,
+               passes: int = 8) -> list[LegCurve]:
     """Geometric-condition curves of the three legs for attach points ``B`` (3, 2).
+
+    The marching-squares polylines are snapped onto the exact level set (Newton along the
+    local normal, closed form) and refined by bisection wherever the rod force jumps by
+    more than ``force_tol * (EI/L^2 + |n|)`` between vertices, so that the piecewise-linear
+    curves in wrench space stay close to the true ones also where the force grows fast
+    (rods near ``|k| = 1``).
 
     Parameters
     ----------
@@ -74,6 +81,10 @@ def leg_curves(m: MechArrays, B: NDArray[np.float64], max_mode: int) -> list[Leg
     B : (3, 2) world attach points at the imposed pose.
     max_mode : int
         Largest d-mode represented.
+    force_tol : float
+        Relative force resolution of the refined polylines.
+    passes : int
+        Maximum number of bisection passes.
     """
     atlas = get_atlas(max_mode)
     out = []
@@ -87,19 +98,73 @@ def leg_curves(m: MechArrays, B: NDArray[np.float64], max_mode: int) -> list[Leg
             z = np.ma.masked_where(~mask_f(atlas.x, atlas.y), z)
         gen = contourpy.contour_generator(x=atlas.PHIS, y=atlas.V, z=z, name="serial",
                                           line_type=contourpy.LineType.Separate)
+        def g(zv, zp, f=f):
+            t = tip_chart(zv, zp)
+            return f(t.x, t.y)
+
         branches = []
         for line in gen.lines(0.0):
             if len(line) < 2:
                 continue
-            phis, v = line[:, 0], line[:, 1]
-            branches.append(_branch_data(m, i, kind, B[i], v, phis))
+            zl = np.stack([line[:, 1], line[:, 0]], -1)
+            data = _branch_data(m, i, kind, B[i], zl[:, 0], zl[:, 1])
+            for _ in range(passes):
+                f_ = data["force"]
+                fscale = m.EI[i] / data["length"] ** 2
+                jump = np.max(np.abs(np.diff(f_, axis=0)), axis=1)
+                lim = force_tol * (np.minimum(fscale[:-1], fscale[1:]) + np.hypot(*f_[:-1].T))
+                bad = np.flatnonzero(jump > lim)
+                if bad.size == 0 or len(zl) > 20000:
+                    break
+                mid = _snap(g, 0.5 * (zl[bad] + zl[bad + 1]), zl[bad + 1] - zl[bad],
+                            max_shift=0.25 * np.hypot(*(zl[bad + 1] - zl[bad]).T))
+                zl = np.insert(zl, bad + 1, mid, axis=0)
+                data = _branch_data(m, i, kind, B[i], zl[:, 0], zl[:, 1])
+            if mask_f is not None:  # length legs: keep the ray, not its opposite
+                t = tip_chart(zl[:, 0], zl[:, 1])
+                if not np.all(mask_f(t.x, t.y)):
+                    keep = mask_f(t.x, t.y)
+                    for piece in np.split(np.arange(len(zl)), np.flatnonzero(np.diff(keep.astype(int))) + 1):
+                        if keep[piece[0]] and len(piece) >= 2:
+                            branches.append(_branch_data(m, i, kind, B[i], zl[piece, 0], zl[piece, 1]))
+                    continue
+            branches.append(data)
         out.append(LegCurve(i, kind, tuple(branches)))
     return out
 
 
+def _snap(g, z: NDArray[np.float64], direction: NDArray[np.float64] | None = None,
+          iters: int = 5, max_shift: NDArray[np.float64] | float = 0.1) -> NDArray[np.float64]:
+    """Move points ``z`` (n, 2) of chart ``(v, phis)`` onto ``g = 0`` along the curve normal.
+
+    ``direction`` is the local curve tangent (default: from neighbouring points).  Points
+    that would move by more than ``max_shift`` (they would jump to another branch of the
+    level set) or where the iteration does not settle keep their original position.
+    """
+    z = np.asarray(z, dtype=float)
+    if direction is None:
+        if len(z) < 2:
+            return z
+        direction = np.gradient(z, axis=0)
+    n = np.stack([-direction[:, 1], direction[:, 0]], -1)
+    n /= np.maximum(np.hypot(n[:, 0], n[:, 1]), 1e-300)[:, None]
+    t = np.zeros(len(z))
+    h = 1e-7
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for _ in range(iters):
+            p = z + t[:, None] * n
+            g0 = g(p[:, 0], p[:, 1])
+            g1 = g(p[:, 0] + h * n[:, 0], p[:, 1] + h * n[:, 1])
+            step = g0 * h / (g1 - g0)
+            t = t - np.where(np.isfinite(step), np.clip(step, -0.05, 0.05), 0.0)
+        p = z + t[:, None] * n
+        ok = np.isfinite(g(p[:, 0], p[:, 1])) & (np.abs(t) < max_shift)
+    return np.where(ok[:, None], p, z)
+
+
 def _branch_data(m: MechArrays, i: int, kind: int, B, v, phis) -> dict[str, NDArray]:
     t = tip_chart(v, phis)
-    ku = np.sin(v)
+    ku = np.tanh(v)
     A = m.origin[i]
     d = B - A
     if kind == PRISMATIC:

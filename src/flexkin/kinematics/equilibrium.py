@@ -61,40 +61,49 @@ class SegmentTree:
 
 
 def equilibrium_triples(p0s: list[NDArray], p1s: list[NDArray], target: NDArray[np.float64],
-                        max_active: int = 2_000_000) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+                        max_nodes: int = 50_000_000, chunk: int = 100_000
+                        ) -> tuple[NDArray[np.int64], NDArray[np.float64], bool]:
     """Segment triples and parameters where ``sum_i w_i(s_i) = target``.
 
     Parameters
     ----------
     p0s, p1s : three arrays (N_i, 3) of segment end points in (scaled) wrench space.
     target : (3,) the load wrench (scaled).
+    max_nodes : budget of node triples examined; when it runs out the search stops and
+        the result is flagged incomplete.
 
     Returns
     -------
     seg : (M, 3) segment index per leg.
     s : (M, 3) segment parameters (approximately in [0, 1]).
+    complete : bool, False if the node budget ran out.
     """
     trees = [SegmentTree(a, b) for a, b in zip(p0s, p1s)]
     if any(t.n == 0 for t in trees):
-        return np.zeros((0, 3), np.int64), np.zeros((0, 3))
-    active = np.ones((1, 3), dtype=np.int64)
+        return np.zeros((0, 3), np.int64), np.zeros((0, 3)), True
+    stack = [np.ones((1, 3), dtype=np.int64)]
     leaves = []
-    while active.size:
+    evaluated = 0
+    complete = True
+    while stack:  # depth-first over chunks: bounded memory
+        active = stack.pop()
+        evaluated += len(active)
+        if evaluated > max_nodes:
+            complete = False
+            break
         lo = sum(trees[i].lo[active[:, i]] for i in range(3))
         hi = sum(trees[i].hi[active[:, i]] for i in range(3))
         keep = np.all((lo <= target) & (hi >= target), axis=1)
         active = active[keep]
         if not active.size:
-            break
+            continue
         leaf = np.stack([trees[i].is_leaf(active[:, i]) for i in range(3)], 1)
         done = np.all(leaf, axis=1)
         if np.any(done):
             leaves.append(active[done])
         active = active[~done]
         if not active.size:
-            break
-        if len(active) > max_active:  # pathological overlap: refuse to blow up memory
-            raise RuntimeError("equilibrium search exceeded its working-set limit")
+            continue
         widths = np.stack([
             np.where(leaf[~done][:, i], -1.0,
                      np.max(trees[i].hi[active[:, i]] - trees[i].lo[active[:, i]], axis=1))
@@ -105,9 +114,11 @@ def equilibrium_triples(p0s: list[NDArray], p1s: list[NDArray], target: NDArray[
         right = active.copy()
         left[rows, j] = 2 * active[rows, j]
         right[rows, j] = 2 * active[rows, j] + 1
-        active = np.concatenate([left, right])
+        nxt = np.concatenate([left, right])
+        for k in range(0, len(nxt), chunk):
+            stack.append(nxt[k:k + chunk])
     if not leaves:
-        return np.zeros((0, 3), np.int64), np.zeros((0, 3))
+        return np.zeros((0, 3), np.int64), np.zeros((0, 3)), complete
     L = np.concatenate(leaves)
     seg = np.stack([trees[i].segment(L[:, i]) for i in range(3)], 1)
     a = [p0s[i][seg[:, i]] for i in range(3)]
@@ -121,4 +132,4 @@ def equilibrium_triples(p0s: list[NDArray], p1s: list[NDArray], target: NDArray[
     if np.any(good):
         s[good] = np.linalg.solve(M[good], rhs[good][..., None])[..., 0]
     ok = np.all((s > -0.3) & (s < 1.3), axis=1) | ~good
-    return seg[ok], np.clip(s[ok], 0.0, 1.0)
+    return seg[ok], np.clip(s[ok], 0.0, 1.0), complete

@@ -120,10 +120,11 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2) 
         p0s.append(cat(P0, (3,))); p1s.append(cat(P1, (3,)))
         zs.append((cat(Z0, (2,)), cat(Z1, (2,)))); us.append((cat(U0, ()), cat(U1, ())))
     target = w / wscale
-    seg, s = equilibrium_triples(p0s, p1s, target)
+    seg, s, complete = equilibrium_triples(p0s, p1s, target)
     diag["candidates"] = int(len(seg))
+    diag["search_complete"] = complete
     if len(seg) == 0:
-        return KinematicsResult("ik", mech, tuple(pose), tuple(w), max_mode, (), True,
+        return KinematicsResult("ik", mech, tuple(pose), tuple(w), max_mode, (), complete,
                                 _empty_message(curves), time.perf_counter() - t0, diag, curves)
     zrod = np.empty((len(seg), 6))
     inputs = np.empty((len(seg), 3))
@@ -137,7 +138,7 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2) 
     sols = refine_ik(m, pose, w, zrod, inputs, max_mode, diag)
     msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
     return KinematicsResult("ik", mech, tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode,
-                            tuple(sols), True, msg, time.perf_counter() - t0, diag, curves)
+                            tuple(sols), complete, msg, time.perf_counter() - t0, diag, curves)
 
 
 def refine_ik(m: MechArrays, pose: NDArray, w: NDArray, zrod: NDArray, inputs: NDArray, max_mode: int,

@@ -2,7 +2,7 @@
 
 Unknowns, for ``n`` candidates at once:
 
-* ``zrod``  (n, 6): the chart coordinates ``(v_i, phis_i)`` (``ku = sin v``) of the three rods,
+* ``zrod``  (n, 6): the chart coordinates ``(v_i, phis_i)`` (``ku = tanh v``) of the three rods,
 * ``pose``  (n, 3): platform pose ``(x, y, theta)`` (rad),
 * ``inputs`` (n, 3): actuator inputs (m for prismatic and length legs, rad for revolute).
 

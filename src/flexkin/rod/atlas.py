@@ -1,13 +1,13 @@
 """Dimensionless atlas of all clamped–pinned rods up to a d-mode (paper Figs. 2, 6).
 
-The atlas samples the unified chart ``(ku = sin v, phis)`` of :mod:`flexkin.rod.closed_form` on a
+The atlas samples the unified chart ``(ku = tanh v, phis)`` of :mod:`flexkin.rod.closed_form` on a
 tensor grid and stores the unit-rod tip quantities.  Because every rod is a scaled unit rod
 (tip ~ L, force ~ EI/L**2), one atlas per maximum d-mode serves every rod of every
 mechanism: the geometric-condition curves of the inverse kinematics (Fig. 7) are level
 sets on it and the single-rod inverse problem searches its triangles.
 
-Grid design: ``ku = sin(v)`` with ``v`` uniform plus a logarithmic refinement towards
-``|ku| -> 1`` (where the tip force grows like ``log(1/k')**2``); ``phis`` uniform from
+Grid design: ``ku = tanh(v)``, uniform in ``arcsin(ku)`` plus a logarithmic refinement
+in ``k'`` towards ``|ku| -> 1`` (where the tip force grows like ``log(1/k')**2``); ``phis`` uniform from
 ``pi/2`` (unloaded straight rod) down to ``-(Q - 1) pi - pi/2`` (end of d-mode Q).
 """
 
@@ -23,17 +23,23 @@ from .closed_form import HALF_PI, tip_chart
 
 __all__ = ["Atlas", "get_atlas", "KPRIME_MIN"]
 
-#: smallest complementary modulus sqrt(1 - k^2) sampled; rods beyond it (extreme loops,
-#: dimensionless force R L^2/EI beyond ~ (2 q K(k))^2 ~ 1000 q^2) are out of scope.
-KPRIME_MIN = 1e-6
+#: smallest complementary modulus sqrt(1 - k^2) sampled.  Rods beyond it (tight loops,
+#: or rods in tension with lambda L beyond ~ 20; dimensionless force R L^2/EI beyond
+#: ~ (2 q K(k))^2 ~ 1500 q^2) are outside the searched set.
+KPRIME_MIN = 1e-8
 
 
-def _v_nodes(n_uniform: int = 121, n_log: int = 16) -> NDArray[np.float64]:
-    """Nodes of the angular chart variable ``v`` (``ku = sin v``, ``k' = cos v``)."""
-    v_edge = np.arccos(1e-2)  # k' = 1e-2
-    v = np.linspace(-v_edge, v_edge, n_uniform)
+def _v_nodes(n_uniform: int = 121, n_log: int = 24) -> NDArray[np.float64]:
+    """Nodes of the chart variable ``v`` (``ku = tanh v``, ``k' = sech v``).
+
+    Uniform in the angle ``arcsin(ku)`` for ``k' >= 1e-2``, then logarithmic in ``k'``
+    down to :data:`KPRIME_MIN`.
+    """
+    a_edge = np.arccos(1e-2)  # k' = 1e-2
+    a = np.linspace(-a_edge, a_edge, n_uniform)
+    v = np.arcsinh(np.tan(a))
     kp = np.logspace(np.log10(1e-2), np.log10(KPRIME_MIN), n_log + 1)[1:]
-    v_end = np.arccos(kp)
+    v_end = np.arccosh(1.0 / kp)
     return np.concatenate([-v_end[::-1], v, v_end])
 
 
@@ -97,4 +103,4 @@ def get_atlas(max_mode: int) -> Atlas:
         a = np.ascontiguousarray(getattr(t, name))
         a.setflags(write=False)
         arrays[name] = a
-    return Atlas(max_mode=max_mode, v=v, ku=np.sin(v), phis=phis, **arrays)
+    return Atlas(max_mode=max_mode, v=v, ku=np.tanh(v), phis=phis, **arrays)

@@ -258,13 +258,14 @@ def tip_unit(ku: ArrayLike, phis: ArrayLike, kprime: ArrayLike | None = None) ->
 
 
 def tip_chart(v: ArrayLike, phis: ArrayLike) -> RodTipArrays:
-    """:func:`tip_unit` in the angular chart ``ku = sin(v)``, ``k' = cos(v)``.
+    """:func:`tip_unit` in the solvers' chart ``ku = tanh(v)``, ``k' = 1/cosh(v)``.
 
-    The solvers iterate on ``v`` rather than ``ku``: near ``|k| = 1`` (tight loops, strong
-    tension) ``k'`` then keeps its relative precision and so does the tip force.
+    The solvers iterate on ``v`` (real line) rather than ``ku``: near ``|k| = 1`` (tight
+    loops, rods in strong tension) ``k' = sech(v)`` keeps its full relative precision, and
+    so does the tip force, which grows like ``log(1/k')**2``.
     """
     v = np.asarray(v, dtype=float)
-    return tip_unit(np.sin(v), phis, np.cos(v))
+    return tip_unit(np.tanh(v), phis, 1.0 / np.cosh(v))
 
 
 def rod_tip(ku: ArrayLike, phis: ArrayLike, L: ArrayLike = 1.0, EI: ArrayLike = 1.0) -> RodTipArrays:

@@ -12,8 +12,8 @@ from .closed_form import HALF_PI, mode_of, rod_shape, tip_chart, to_paper
 
 __all__ = ["RodState", "project_chart", "rot"]
 
-#: margin keeping iterates strictly inside the chart (|v| < pi/2, phis < pi/2)
-_V_MAX = HALF_PI - 1e-9
+#: bound on the chart variable v (ku = tanh v, k' = sech v ~ 2 exp(-|v|))
+_V_MAX = 40.0
 
 
 def rot(angle: float | NDArray[np.float64]) -> NDArray[np.float64]:
@@ -23,20 +23,21 @@ def rot(angle: float | NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def project_chart(v: NDArray[np.float64], phis: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Map iterates back into the chart ``|v| < pi/2, phis < pi/2`` (``ku = sin v``).
+    """Map iterates back into the chart ``phis < pi/2`` (``ku = tanh v``).
 
     A step across ``phis = pi/2`` passes through the unloaded straight rod, where the
     chart is polar (``sqrt(R) ~ pi/2 - phis``, ``psi = 2 arccos(ku)``); it is continued on
     the other side, i.e. with the force reversed: ``phis -> pi - phis`` and ``psi -> psi +/- pi``,
-    which is ``v -> v -/+ pi/2``.
+    which is ``a -> a -/+ pi/2`` for the angle ``a = arcsin(ku)`` (the Gudermannian of v).
     """
     v = np.asarray(v, dtype=float).copy()
     phis = np.asarray(phis, dtype=float).copy()
     over = phis > HALF_PI - 1e-12
     if np.any(over):
         phis[over] = np.minimum(np.pi - phis[over], HALF_PI - 1e-12)
-        vo = np.clip(v[over], -HALF_PI, HALF_PI)
-        v[over] = np.where(vo >= 0, vo - HALF_PI, vo + HALF_PI)
+        a = np.arctan(np.sinh(v[over]))  # Gudermannian: ku = sin(a)
+        a = np.where(a >= 0, a - HALF_PI, a + HALF_PI)
+        v[over] = np.arcsinh(np.tan(a))
     np.clip(v, -_V_MAX, _V_MAX, out=v)
     return v, phis
 
@@ -54,7 +55,7 @@ class RodState:
         direction of the tip force in the rod's local (clamp) frame.
     ku, phis : float
         Unified-chart coordinates (see :mod:`flexkin.rod.closed_form`); ``v`` with
-        ``ku = sin v`` is the solvers' variable.
+        ``ku = tanh v`` is the solvers' variable.
     length, EI : float
         Free length (m) and bending stiffness (N m^2).
     clamp, clamp_angle : clamp point (world, m) and tangent angle (rad).
@@ -85,8 +86,8 @@ class RodState:
     def from_chart(cls, v: float, phis: float, length: float, EI: float,
                    clamp: NDArray[np.float64] | tuple[float, float] = (0.0, 0.0),
                    clamp_angle: float = 0.0) -> "RodState":
-        """Build the state from chart coordinates ``(v, phis)`` (``ku = sin v``) and the clamp."""
-        ku = float(np.sin(v))
+        """Build the state from chart coordinates ``(v, phis)`` (``ku = tanh v``) and the clamp."""
+        ku = float(np.tanh(v))
         tu = tip_chart(v, phis)
         t = _Scaled(tu, length, EI)
         k, psi, q = to_paper(ku, phis)
@@ -109,13 +110,13 @@ class RodState:
 
     def shape(self, n: int = 101) -> NDArray[np.float64]:
         """Deformed centre line in the world frame, shape ``(n, 2)``."""
-        _, x, y, _, _ = rod_shape(self.ku, self.phis, self.length, self.EI, n, kprime=np.cos(self.v))
+        _, x, y, _, _ = rod_shape(self.ku, self.phis, self.length, self.EI, n, kprime=1.0 / np.cosh(self.v))
         pts = np.stack([x, y], -1) @ rot(self.clamp_angle).T
         return pts + np.asarray(self.clamp)
 
     def curvature(self, n: int = 201) -> NDArray[np.float64]:
         """Curvature ``theta'(s)`` at ``n`` points uniformly spaced in arc length (1/m)."""
-        _, _, _, _, m = rod_shape(self.ku, self.phis, self.length, self.EI, n, kprime=np.cos(self.v))
+        _, _, _, _, m = rod_shape(self.ku, self.phis, self.length, self.EI, n, kprime=1.0 / np.cosh(self.v))
         return m / self.EI
 
     def to_dict(self) -> dict[str, Any]:
