@@ -12,13 +12,13 @@ Quick start
 """
 
 from .errors import FlexkinWarning, MechanismError
-from .kinematics import KinematicsResult, Solution, ik
+from .kinematics import KinematicsResult, Solution, fk, ik
 from .mechanism import Leg, Mechanism, Platform, Rod, load_mechanism
 from .rod import RodInverseResult, RodState, solve_rod
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "FlexkinWarning", "MechanismError", "KinematicsResult", "Solution", "ik", "Leg", "Mechanism",
+    "FlexkinWarning", "MechanismError", "KinematicsResult", "Solution", "fk", "ik", "Leg", "Mechanism",
     "Platform", "Rod", "load_mechanism", "RodInverseResult", "RodState", "solve_rod", "__version__",
 ]

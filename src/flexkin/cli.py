@@ -1,4 +1,4 @@
-"""Command-line interface: ``flexkin {show, rod, ik} ...`` (SPEC §4).
+"""Command-line interface: ``flexkin {show, rod, ik, fk} ...`` (SPEC §4).
 
 Thin: parse -> call the library -> print a table or the JSON contract -> write figures.
 User mistakes (bad files, bad numbers) end with one line on stderr and exit status 2;
@@ -92,17 +92,23 @@ def _build_parser() -> argparse.ArgumentParser:
     r.add_argument("--json", action="store_true", help="print the JSON result")
     r.add_argument("--plot", metavar="FILE", help="write a figure (shapes, or force vs x for --sweep)")
 
-    for name, helptext in (("ik", "inverse kinematics: every equilibrium at a platform pose"),):
+    for name, helptext in (("ik", "inverse kinematics: every equilibrium at a platform pose"),
+                           ("fk", "forward kinematics: every equilibrium pose for actuator inputs")):
         k = sub.add_parser(name, help=helptext)
         k.add_argument("mechanism", help="mechanism file (TOML, SPEC §3)")
-        k.add_argument("--pose", nargs=3, type=_finite("--pose"), metavar=("X", "Y", "THETA"), required=True,
-                       help="platform pose: m, m, deg")
+        if name == "ik":
+            k.add_argument("--pose", nargs=3, type=_finite("--pose"), metavar=("X", "Y", "THETA"), required=True,
+                           help="platform pose: m, m, deg")
+        else:
+            k.add_argument("--inputs", nargs=3, type=_finite("--inputs"), metavar=("U1", "U2", "U3"), required=True,
+                           help="actuator inputs: m for prismatic and length legs, deg for revolute legs")
         k.add_argument("--load", nargs=3, type=_finite("--load"), metavar=("FX", "FY", "MZ"),
                        help="load wrench at P [N, N, N m] (default: the file's [load] or zero)")
         k.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode of any rod (default 2)")
         k.add_argument("--json", action="store_true", help="print the SPEC §4 JSON object")
         k.add_argument("--plot", metavar="FILE", help="figure with one panel per solution")
-        k.add_argument("--curves", metavar="FILE", help="figure of the geometric-condition curves (Fig. 7)")
+        if name == "ik":
+            k.add_argument("--curves", metavar="FILE", help="figure of the geometric-condition curves (Fig. 7)")
     return p
 
 
@@ -201,21 +207,28 @@ def _cmd_rod(a) -> int:
 
 
 def _cmd_kinematics(a) -> int:
-    from .kinematics import ik
+    from .kinematics import fk, ik
 
     mech = _load_mech(a.mechanism)
-    pose = (a.pose[0], a.pose[1], math.radians(a.pose[2]))
-    res = ik(mech, pose, load=a.load, max_mode=a.max_mode)
+    if a.command == "ik":
+        pose = (a.pose[0], a.pose[1], math.radians(a.pose[2]))
+        res = ik(mech, pose, load=a.load, max_mode=a.max_mode)
+        what = f"inverse kinematics at pose ({a.pose[0]:g} m, {a.pose[1]:g} m, {a.pose[2]:g} deg)"
+    else:
+        u = [math.radians(v) if leg.actuation == "revolute" else v for v, leg in zip(a.inputs, mech.legs)]
+        res = fk(mech, u, load=a.load, max_mode=a.max_mode)
+        units = ["deg" if leg.actuation == "revolute" else "m" for leg in mech.legs]
+        what = "forward kinematics at inputs (" + ", ".join(f"{v:g} {un}" for v, un in zip(a.inputs, units)) + ")"
     if a.json:
         print(_dump(res.to_dict()))
     else:
         load = ", ".join(f"{v:g}" for v in res.load)
-        print(f"{mech.name}: inverse kinematics at pose ({a.pose[0]:g} m, {a.pose[1]:g} m, {a.pose[2]:g} deg), "
-              f"load ({load}), d-modes <= {res.max_mode}: {len(res)} solution(s) in {res.elapsed:.2f} s")
+        print(f"{mech.name}: {what}, load ({load}), d-modes <= {res.max_mode}: {len(res)} solution(s) "
+              f"in {res.elapsed:.2f} s" + ("" if res.complete else " (search incomplete)"))
         if len(res):
             print("per d-mode combination: " + ", ".join(f"{k}: {v}" for k, v in sorted(res.by_modes().items())))
             print(res.table())
-    if not len(res):
+    if not len(res) or not res.complete:
         print(f"flexkin {a.command}: {res.message}", file=sys.stderr)
     if a.plot:
         res.plot(a.plot)
@@ -236,7 +249,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _build_parser()
     try:
         a = parser.parse_args(argv)
-        handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics}[a.command]
+        handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics, "fk": _cmd_kinematics}[a.command]
         return handler(a)
     except CLIError as e:
         print(str(e), file=sys.stderr)

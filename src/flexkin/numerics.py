@@ -14,7 +14,7 @@ from typing import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["NewtonResult", "batch_newton", "fd_jacobian"]
+__all__ = ["NewtonResult", "batch_newton", "fd_jacobian", "solve_batch"]
 
 Residual = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -134,13 +134,27 @@ def _norm(r: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def _lstsq_batch(J: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
     """Solve ``J x = b`` per candidate; minimum-norm least squares where singular."""
+    return solve_batch(J, b)
+
+
+def solve_batch(J: NDArray[np.float64], b: NDArray[np.float64], rcond: float = 1e-13) -> NDArray[np.float64]:
+    """Batched ``J x = b`` (J: (n, p, p)); falls back to a batched truncated SVD.
+
+    Never loops in Python: singular or non-finite systems get the minimum-norm
+    least-squares solution (rows of NaN/inf matrices give NaN).
+    """
     try:
         x = np.linalg.solve(J, b[..., None])[..., 0]
         if np.all(np.isfinite(x)):
             return x
     except np.linalg.LinAlgError:
         pass
-    out = np.empty_like(b)
-    for i in range(J.shape[0]):
-        out[i] = np.linalg.lstsq(J[i], b[i], rcond=1e-13)[0]
-    return out
+    finite = np.all(np.isfinite(J), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
+    x = np.full(b.shape, np.nan)
+    if np.any(finite):
+        U, S, Vt = np.linalg.svd(J[finite])
+        cut = S > rcond * S[:, :1]
+        inv = np.where(cut, 1.0 / np.where(cut, S, 1.0), 0.0)
+        c = np.einsum("nji,nj->ni", U, b[finite]) * inv
+        x[finite] = np.einsum("nji,nj->ni", Vt, c)
+    return x

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..numerics import batch_newton
+from ..numerics import batch_newton, solve_batch
 from ..rod.atlas_tree import get_atlas_tree
 from ..rod.closed_form import tip_chart
 from .ik import RESIDUAL_TOL, _as_load, _check_mode, finish_solutions
@@ -54,9 +54,17 @@ def _dist_ok(c, h, d, tol):
 
 
 def fk_candidates(m: MechArrays, inputs: NDArray, w: NDArray, max_mode: int,
-                  max_nodes: int = 200_000_000, chunk: int = 200_000, stride: int = 1,
-                  eps_tip: float = 0.01, eps_force: float = 0.05) -> NDArray[np.float64]:
-    """Starting points (n, 9) = (zrod, pose) for the FK Newton, from the atlas B&B."""
+                  max_nodes: int = 20_000_000, chunk: int = 200_000, stride: int = 1,
+                  eps_tip: float = 0.01, eps_force: float = 0.05, fallback: int = 20_000
+                  ) -> tuple[NDArray[np.float64], bool]:
+    """Starting points (n, 9) = (zrod, pose) for the FK Newton, from the atlas B&B.
+
+    Returns the starts and whether the search completed within ``max_nodes`` node
+    triples.  Near singular configurations (e.g. all rods' lines of action through one
+    point, where the moment balance stops pruning) the search can exceed its budget; it
+    then also returns the centres of up to ``fallback`` unresolved node triples
+    (deterministic subsample) and reports ``complete = False``.
+    """
     tree = get_atlas_tree(max_mode, stride)
     A, alpha, L = clamp_arrays(m, inputs[None])
     A, alpha, L = A[0], alpha[0], L[0]
@@ -94,7 +102,8 @@ def fk_candidates(m: MechArrays, inputs: NDArray, w: NDArray, max_mode: int,
         active = stack.pop()
         evaluated += len(active)
         if evaluated > max_nodes:
-            raise RuntimeError("forward-kinematics search exceeded its node budget")
+            stack.append(active)
+            break
         n = [active[:, i] for i in range(3)]
         c = [cen_t[i][n[i]] for i in range(3)]
         h = [half_t[i][n[i]] for i in range(3)]
@@ -128,10 +137,18 @@ def fk_candidates(m: MechArrays, inputs: NDArray, w: NDArray, max_mode: int,
         nxt = np.concatenate([left, right])
         for k in range(0, len(nxt), chunk):
             stack.append(nxt[k:k + chunk])
-    if not leaves:
-        return np.zeros((0, 9))
-    lv = np.concatenate(leaves)
-    return _linearised_starts(m, tree, lv, A, alpha, L, w)
+    complete = not stack
+    starts = [np.zeros((0, 9))]
+    if leaves:
+        starts.append(_linearised_starts(m, tree, np.concatenate(leaves), A, alpha, L, w))
+    if stack:
+        rest = np.concatenate(stack)
+        if len(rest) > fallback:
+            rest = rest[np.random.default_rng(0).choice(len(rest), fallback, replace=False)]
+        zrod = np.concatenate([tree.center[rest[:, i]] for i in range(3)], axis=1)
+        tips, _ = rod_world(m, zrod, np.broadcast_to(inputs, (len(zrod), 3)))
+        starts.append(np.concatenate([zrod, fit_pose(m, tips)], axis=1))
+    return np.concatenate(starts), complete
 
 
 def _linearised_starts(m: MechArrays, tree, lv: NDArray[np.int64], A, alpha, L, w: NDArray,
@@ -189,13 +206,8 @@ def _linearised_starts(m: MechArrays, tree, lv: NDArray[np.int64], A, alpha, L, 
         # scale rows and columns for conditioning
         rs = np.array([1.0 / m.L_ref] * 6 + [1.0 / m.F_ref] * 2 + [1.0 / (m.F_ref * m.L_ref)])
         Ms = M * rs[None, :, None]
-        ok = np.isfinite(Ms).all(axis=(1, 2))
-        step = np.full((k, 9), np.inf)
-        try:
-            step[ok] = -np.linalg.solve(Ms[ok], (r * rs)[ok][..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            for j in np.flatnonzero(ok):
-                step[j] = -np.linalg.lstsq(Ms[j], (r * rs)[j], rcond=1e-12)[0]
+        step = -solve_batch(Ms, r * rs)
+        step = np.where(np.isfinite(step), step, np.inf)
         half = np.concatenate([tree.half[sl[:, i]] for i in range(3)], axis=1)
         keep = np.all(np.abs(step[:, :6]) <= (1.0 + reach) * half, axis=1)
         x = np.concatenate([zc + step[:, :6], pose0 + step[:, 6:]], axis=1)
@@ -253,8 +265,9 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     if msg:
         return KinematicsResult("fk", mech, tuple(float(v) for v in u), tuple(float(v) for v in w), max_mode, (),
                                 True, msg, time.perf_counter() - t0, diag)
-    x0 = fk_candidates(m, u, w, max_mode, stride=stride)
+    x0, complete = fk_candidates(m, u, w, max_mode, stride=stride)
     diag["candidates"] = int(len(x0))
+    diag["search_complete"] = complete
 
     def f(x: NDArray) -> NDArray:
         return residual(m, x[:, :6], x[:, 6:], np.broadcast_to(u, (len(x), 3)), w)
@@ -275,8 +288,11 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     sols = finish_solutions(m, x[:, :6], res.residual[good], pose, np.broadcast_to(u, (len(x), 3)),
                             max_mode, key_scale)
     msg = "" if sols else "no equilibrium pose found for these inputs and load"
+    if not complete:
+        msg = ("search budget exhausted near a singular configuration: the solution list may be incomplete"
+               + ("" if sols else "; " + msg))
     return KinematicsResult("fk", mech, tuple(float(v) for v in u), tuple(float(v) for v in w), max_mode,
-                            tuple(sols), True, msg, time.perf_counter() - t0, diag)
+                            tuple(sols), complete, msg, time.perf_counter() - t0, diag)
 
 
 def _assembly_obstruction(m: MechArrays, u: NDArray) -> str:
