@@ -24,7 +24,8 @@ from ..rod.closed_form import mode_of
 from .curves import leg_curves
 from .equilibrium import equilibrium_triples
 from .results import KinematicsResult, Solution
-from .system import MechArrays, platform_points, project_zrod, residual, rod_states
+from ..rod.closed_form import tip_chart
+from .system import MechArrays, clamp_arrays, platform_points, project_zrod, residual, rod_states, rod_world
 
 __all__ = ["ik", "solve_ik", "RESIDUAL_TOL"]
 
@@ -47,23 +48,29 @@ def _check_mode(max_mode: Any) -> int:
 
 def finish_solutions(m: MechArrays, z: NDArray, res_norm: NDArray, pose: NDArray, inputs: NDArray,
                      max_mode: int, key_scale: NDArray) -> list[Solution]:
-    """Filter converged candidates by d-mode, de-duplicate, build :class:`Solution` objects."""
+    """Filter converged candidates by d-mode, de-duplicate, build :class:`Solution` objects.
+
+    Two candidates are the same equilibrium when their rods' tip forces and base moments,
+    pose and inputs agree to 1e-6 (scaled); the one with the smaller residual is kept.
+    Solutions are sorted by (d-modes, energy, inputs, pose).
+    """
     modes = mode_of(z[:, 1::2])
     ok = np.all(modes <= max_mode, axis=1)
     z, res_norm, pose, inputs = z[ok], res_norm[ok], pose[ok], inputs[ok]
-    # identity of a solution: rods' tip forces and base moments (physical, chart-independent)
-    keys = []
-    for zi, ui in zip(z, inputs):
-        rs = rod_states(m, zi, ui)
-        keys.append(np.concatenate([[r.tip_force[0], r.tip_force[1], r.base_moment / m.L_ref] for r in rs]))
-    keys = np.asarray(keys).reshape(len(z), -1) / m.F_ref
-    pose_scale = np.array([m.L_ref, m.L_ref, 1.0])
-    full = np.concatenate([keys, pose / pose_scale, inputs / key_scale], axis=1) if len(z) else keys
+    if len(z) == 0:
+        return []
+    # identity of a solution: physical, chart-independent quantities, computed in one batch
+    _, force = rod_world(m, z, inputs)
+    _, _, L = clamp_arrays(m, inputs)
+    t = tip_chart(z[:, 0::2], z[:, 1::2])
+    m0 = t.m0 * m.EI[None] / L
+    keys = np.concatenate([force.reshape(-1, 6) / m.F_ref, m0 / (m.F_ref * m.L_ref),
+                           pose / np.array([m.L_ref, m.L_ref, 1.0]), inputs / key_scale], axis=1)
     order = np.argsort(res_norm, kind="stable")
     chosen: list[int] = []
     for i in order:
-        if all(np.max(np.abs(full[i] - full[j])) > 1e-6 for j in chosen):
-            chosen.append(i)
+        if not chosen or np.min(np.max(np.abs(keys[chosen] - keys[i]), axis=1)) > 1e-6:
+            chosen.append(int(i))
     sols = []
     for i in chosen:
         rs = rod_states(m, z[i], inputs[i])
