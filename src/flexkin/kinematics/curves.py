@@ -50,19 +50,14 @@ def _field(kind: int, A, B, angle: float, length: float):
     """Scalar field whose zero set is the leg's geometric condition, and a validity mask."""
     d = B - A
     if kind == PRISMATIC:
-        h = -np.sin(angle) * d[0] + np.cos(angle) * d[1]
-        return A_y_field(h / length), None
-    if kind == REVOLUTE:
+        hh = (-np.sin(angle) * d[0] + np.cos(angle) * d[1]) / length  # Fig. 5: y = h
+        return (lambda x, y: y - hh), None
+    if kind == REVOLUTE:  # Fig. 8: x^2 + y^2 = r^2
         r = float(np.hypot(*d))
         return lambda x, y: np.hypot(x, y) - r / length, None
-    beta = np.arctan2(d[1], d[0]) - angle
+    beta = np.arctan2(d[1], d[0]) - angle  # Fig. 9: y/x = tan(beta) on the unit rod
     cb, sb = np.cos(beta), np.sin(beta)
     return (lambda x, y: x * sb - y * cb), (lambda x, y: x * cb + y * sb > 1e-9)
-
-
-def A_y_field(hh: float):
-    """Field ``y - h`` of a prismatic leg (unit rod)."""
-    return lambda x, y: y - hh
 
 
 def leg_curves(m: MechArrays, B: NDArray[np.float64], max_mode: int, *, force_tol: float = 0.05,

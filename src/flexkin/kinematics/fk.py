@@ -26,10 +26,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..numerics import batch_newton, solve_batch
 from ..rod.atlas_tree import get_atlas_tree
-from ..rod.closed_form import tip_chart
-from .ik import RESIDUAL_TOL, _as_load, _check_mode, finish_solutions
+from .ik import RESIDUAL_TOL, _as_load, _as_triple, _check_mode, finish_solutions, project_unknowns
 from .results import KinematicsResult
-from .system import REVOLUTE, MechArrays, clamp_arrays, project_zrod, residual, rod_world
+from .system import REVOLUTE, MechArrays, clamp_arrays, residual, rod_world
 
 __all__ = ["fk"]
 
@@ -252,9 +251,7 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     """
     t0 = time.perf_counter()
     max_mode = _check_mode(max_mode)
-    u = np.asarray(inputs, dtype=float).reshape(-1)
-    if u.shape != (3,) or not np.all(np.isfinite(u)):
-        raise ValueError(f"inputs must be three finite numbers, got {inputs!r}")
+    u = _as_triple(inputs, "inputs")
     w = _as_load(mech, load)
     m = MechArrays.from_mechanism(mech)
     for i in range(3):
@@ -272,13 +269,8 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     def f(x: NDArray) -> NDArray:
         return residual(m, x[:, :6], x[:, 6:], np.broadcast_to(u, (len(x), 3)), w)
 
-    def project(x: NDArray) -> NDArray:
-        x = x.copy()
-        x[:, :6] = project_zrod(x[:, :6])
-        return x
-
     cap = np.array([0.2, 0.5] * 3 + [0.1 * m.L_ref, 0.1 * m.L_ref, 0.3])
-    res = batch_newton(f, x0, tol=1e-13, project=project, max_step=cap)
+    res = batch_newton(f, x0, tol=1e-13, project=project_unknowns, max_step=cap)
     good = res.residual <= RESIDUAL_TOL
     diag["converged"] = int(np.count_nonzero(good))
     x = res.z[good]

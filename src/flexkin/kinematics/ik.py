@@ -34,10 +34,25 @@ RESIDUAL_TOL = 1e-10
 
 
 def _as_load(mech, load: ArrayLike | None) -> NDArray[np.float64]:
-    w = np.asarray(mech.load if load is None else load, dtype=float).reshape(-1)
-    if w.shape != (3,) or not np.all(np.isfinite(w)):
-        raise ValueError(f"load must be three finite numbers (Fx, Fy, Mz), got {load!r}")
-    return w
+    return _as_triple(mech.load if load is None else load, "load (Fx, Fy, Mz)")
+
+
+def _as_triple(value: ArrayLike, what: str) -> NDArray[np.float64]:
+    """Three finite numbers, or a ValueError naming ``what``."""
+    try:
+        a = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be three finite numbers, got {value!r}") from None
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{what} must be three finite numbers, got {value!r}")
+    return a
+
+
+def project_unknowns(x: NDArray) -> NDArray:
+    """Keep the rod-chart part (first 6 columns) of Newton iterates admissible."""
+    x = x.copy()
+    x[:, :6] = project_zrod(x[:, :6])
+    return x
 
 
 def _check_mode(max_mode: Any) -> int:
@@ -102,9 +117,7 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2) 
     """
     t0 = time.perf_counter()
     max_mode = _check_mode(max_mode)
-    pose = np.asarray(pose, dtype=float).reshape(-1)
-    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
-        raise ValueError(f"pose must be three finite numbers (x, y, theta), got {pose!r}")
+    pose = _as_triple(pose, "pose (x, y, theta)")
     w = _as_load(mech, load)
     m = MechArrays.from_mechanism(mech)
     B = platform_points(m, pose[None])[0]
@@ -158,14 +171,9 @@ def refine_ik(m: MechArrays, pose: NDArray, w: NDArray, zrod: NDArray, inputs: N
         k = len(x)
         return residual(m, x[:, :6], np.broadcast_to(pose, (k, 3)), x[:, 6:], w)
 
-    def project(x: NDArray) -> NDArray:
-        x = x.copy()
-        x[:, :6] = project_zrod(x[:, :6])
-        return x
-
     x0 = np.concatenate([zrod, inputs], axis=1)
     cap = np.array([0.2, 0.5] * 3 + [0.2 * m.L_ref if k != 1 else 0.3 for k in m.kind])
-    res = batch_newton(f, x0, tol=1e-13, project=project, max_step=cap)
+    res = batch_newton(f, x0, tol=1e-13, project=project_unknowns, max_step=cap)
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
