@@ -112,7 +112,8 @@ def test_solutions_are_ode_equilibria(case):
         assert e_m <= 1e-7, (s, ode.m_tip)
         assert e_th <= 1e-7
         assert e_u <= 1e-8
-        assert count_inflections(ode.ms, rel_tol=1e-6) == s.mode  # near-loop forward integration: |m(L)| ~ 1e-7 relative
+        # near-loop forward integration leaves |m(L)| ~ 1e-7 relative: ignore sign noise below 1e-6
+        assert count_inflections(ode.ms, rel_tol=1e-6) == s.mode
         # paper parameters are consistent with the world-frame force
         assert s.R == pytest.approx(np.hypot(*s.tip_force), rel=1e-14)
         assert abs(_wrap(np.arctan2(s.tip_force[1], s.tip_force[0]) - (ang + s.psi))) < 1e-9

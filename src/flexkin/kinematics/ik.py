@@ -24,6 +24,7 @@ from ..rod.closed_form import mode_of
 from .curves import leg_curves
 from .equilibrium import equilibrium_triples
 from .results import KinematicsResult, Solution
+from ..rod.atlas import in_scope
 from ..rod.closed_form import tip_chart
 from .system import MechArrays, clamp_arrays, platform_points, project_zrod, residual, rod_states, rod_world
 
@@ -70,7 +71,7 @@ def finish_solutions(m: MechArrays, z: NDArray, res_norm: NDArray, pose: NDArray
     Solutions are sorted by (d-modes, energy, inputs, pose).
     """
     modes = mode_of(z[:, 1::2])
-    ok = np.all(modes <= max_mode, axis=1)
+    ok = np.all(modes <= max_mode, axis=1) & in_scope(z[:, 0::2])
     z, res_norm, pose, inputs = z[ok], res_norm[ok], pose[ok], inputs[ok]
     if len(z) == 0:
         return []

@@ -21,15 +21,17 @@ from numpy.typing import NDArray
 
 from .closed_form import HALF_PI, tip_chart
 
-__all__ = ["Atlas", "get_atlas", "KPRIME_MIN"]
+__all__ = ["Atlas", "get_atlas", "KPRIME_MIN", "in_scope"]
 
-#: smallest complementary modulus sqrt(1 - k^2) sampled.  Rods beyond it (tight loops,
-#: or rods in tension with lambda L beyond ~ 20; dimensionless force R L^2/EI beyond
-#: ~ (2 q K(k))^2 ~ 1500 q^2) are outside the searched set.
-KPRIME_MIN = 1e-8
+#: smallest complementary modulus sqrt(1 - k^2) in scope.  Rods beyond it (tight loops, or
+#: rods in tension with lambda L beyond ~ 15; dimensionless force R L^2/EI beyond
+#: ~ (2 q K(k))^2 ~ 900 q^2) are outside the searched set: their shape depends on the tip
+#: force with a condition number ~ 1/k'^2 > 1e12, so no double-precision computation (closed
+#: form or ODE) can confirm them.  Solvers drop solutions with a rod below KPRIME_MIN / 2.
+KPRIME_MIN = 1e-6
 
 
-def _v_nodes(n_uniform: int = 121, n_log: int = 24) -> NDArray[np.float64]:
+def _v_nodes(n_uniform: int = 121, n_log: int = 20) -> NDArray[np.float64]:
     """Nodes of the chart variable ``v`` (``ku = tanh v``, ``k' = sech v``).
 
     Uniform in the angle ``arcsin(ku)`` for ``k' >= 1e-2``, then logarithmic in ``k'``
@@ -41,6 +43,15 @@ def _v_nodes(n_uniform: int = 121, n_log: int = 24) -> NDArray[np.float64]:
     kp = np.logspace(np.log10(1e-2), np.log10(KPRIME_MIN), n_log + 1)[1:]
     v_end = np.arccosh(1.0 / kp)
     return np.concatenate([-v_end[::-1], v, v_end])
+
+
+def in_scope(v: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Whether rods with chart variable ``v`` (``k' = sech v``) are in scope, per row.
+
+    Accepts any array; the test is applied over the last axis (all rods of a solution).
+    """
+    v = np.asarray(v, dtype=float)
+    return np.all(np.abs(v) <= np.arccosh(2.0 / KPRIME_MIN), axis=-1)
 
 
 def _phis_nodes(max_mode: int, per_pi: int = 96) -> NDArray[np.float64]:

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..numerics import NewtonResult, batch_newton
-from .atlas import get_atlas
+from .atlas import get_atlas, in_scope
 from .closed_form import mode_of, tip_chart
 from .state import RodState, project_chart, rot
 
@@ -186,7 +186,7 @@ def solve_rod(
 
     starts = atlas_starts(local, max_mode)
     res = refine_rod(starts, local)
-    ok = res.converged & (mode_of(res.z[:, 1]) <= max_mode)
+    ok = res.converged & (mode_of(res.z[:, 1]) <= max_mode) & in_scope(res.z[:, :1])
     z = res.z[ok]
     order = np.lexsort((z[:, 1], z[:, 0]))
     z = z[order][unique_rows(z[order], 1e-7)]
