@@ -62,6 +62,8 @@ def batch_newton(
     project: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
     max_step: NDArray[np.float64] | float | None = None,
     fd_step: float = 1e-7,
+    merge_after: int | None = None,
+    merge_tol: float = 1e-7,
 ) -> NewtonResult:
     """Solve ``f(z) = 0`` for many starting points at once.
 
@@ -78,6 +80,10 @@ def batch_newton(
         Starting points.
     tol : float
         Convergence threshold on the infinity norm of the (scaled) residual.
+    merge_after : int, optional
+        From this iteration on, active candidates whose iterates coincide to ``merge_tol``
+        (they converge to the same root) are merged: all but one are dropped and reported
+        as not converged.  Saves the work of refining many starts of one root.
     """
     z = np.array(np.atleast_2d(z0), dtype=float)
     if project is not None:
@@ -89,7 +95,16 @@ def batch_newton(
     norm = _norm(r)
     iters = np.zeros(n, np.int64)
     active = norm > tol
-    for _ in range(max_iter):
+    for it in range(max_iter):
+        if merge_after is not None and it >= merge_after:
+            idx = np.flatnonzero(active)
+            if idx.size > 1:
+                keys = np.round(z[idx] / merge_tol).astype(np.int64)
+                _, first = np.unique(keys, axis=0, return_index=True)
+                dup = np.ones(idx.size, bool)
+                dup[first] = False
+                active[idx[dup]] = False
+                norm[idx[dup]] = np.inf
         idx = np.flatnonzero(active)
         if idx.size == 0:
             break

@@ -270,7 +270,7 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         return residual(m, x[:, :6], x[:, 6:], np.broadcast_to(u, (len(x), 3)), w)
 
     cap = np.array([0.2, 0.5] * 3 + [0.1 * m.L_ref, 0.1 * m.L_ref, 0.3])
-    res = batch_newton(f, x0, tol=1e-13, project=project_unknowns, max_step=cap)
+    res = batch_newton(f, x0, tol=1e-13, project=project_unknowns, max_step=cap, merge_after=4, merge_tol=1e-6)
     good = res.residual <= RESIDUAL_TOL
     diag["converged"] = int(np.count_nonzero(good))
     x = res.z[good]

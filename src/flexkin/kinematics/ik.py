@@ -174,7 +174,7 @@ def refine_ik(m: MechArrays, pose: NDArray, w: NDArray, zrod: NDArray, inputs: N
 
     x0 = np.concatenate([zrod, inputs], axis=1)
     cap = np.array([0.2, 0.5] * 3 + [0.2 * m.L_ref if k != 1 else 0.3 for k in m.kind])
-    res = batch_newton(f, x0, tol=1e-13, project=project_unknowns, max_step=cap)
+    res = batch_newton(f, x0, tol=1e-13, project=project_unknowns, max_step=cap, merge_after=4, merge_tol=1e-6)
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
