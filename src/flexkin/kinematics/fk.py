@@ -82,7 +82,8 @@ def fk_candidates(m: MechArrays, inputs: NDArray, w: NDArray, max_mode: int,
         half_f.append(fs * hf @ Ra.T)
     b = m.attach
     d12, d13, d23 = (float(np.hypot(*(b[j] - b[i]))) for i, j in ((0, 1), (0, 2), (1, 2)))
-    area = float(np.cross(b[1] - b[0], b[2] - b[0]))
+    e1, e2 = b[1] - b[0], b[2] - b[0]
+    area = float(e1[0] * e2[1] - e1[1] * e2[0])  # signed: rejects the mirror-image platform
     tol_len = 1e-9 * m.L_ref
     Fres = float(np.hypot(w[0], w[1]))
     mom_slack = float(np.hypot(*b[0])) * Fres

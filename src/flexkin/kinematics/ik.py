@@ -26,7 +26,7 @@ from .equilibrium import equilibrium_triples
 from .results import KinematicsResult, Solution
 from ..rod.atlas import in_scope
 from ..rod.closed_form import tip_chart
-from .system import MechArrays, clamp_arrays, platform_points, project_zrod, residual, rod_states, rod_world
+from .system import REVOLUTE, MechArrays, clamp_arrays, platform_points, project_zrod, residual, rod_states, rod_world
 
 __all__ = ["ik", "solve_ik", "RESIDUAL_TOL"]
 
@@ -72,7 +72,10 @@ def finish_solutions(m: MechArrays, z: NDArray, res_norm: NDArray, pose: NDArray
     """
     modes = mode_of(z[:, 1::2])
     ok = np.all(modes <= max_mode, axis=1) & in_scope(z[:, 0::2])
-    z, res_norm, pose, inputs = z[ok], res_norm[ok], pose[ok], inputs[ok]
+    z, res_norm, pose, inputs = z[ok], res_norm[ok], pose[ok], inputs[ok].copy()
+    # revolute inputs (clamp angles) are reported in (-pi, pi]
+    rev = m.kind == REVOLUTE
+    inputs[:, rev] = np.pi - np.mod(np.pi - inputs[:, rev], 2 * np.pi)
     if len(z) == 0:
         return []
     # identity of a solution: physical, chart-independent quantities, computed in one batch
