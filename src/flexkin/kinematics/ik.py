@@ -23,7 +23,9 @@ from ..numerics import batch_newton
 from ..rod.closed_form import mode_of
 from .curves import leg_curves
 from .equilibrium import equilibrium_triples
+from .jacobian import kinematic_jacobians
 from .results import KinematicsResult, Solution
+from .stability import mechanism_stability
 from ..rod.atlas import in_scope
 from ..rod.closed_form import tip_chart
 from .system import REVOLUTE, MechArrays, clamp_arrays, platform_points, project_zrod, residual, rod_states, rod_world
@@ -90,12 +92,17 @@ def finish_solutions(m: MechArrays, z: NDArray, res_norm: NDArray, pose: NDArray
     for i in order:
         if not chosen or np.min(np.max(np.abs(keys[chosen] - keys[i]), axis=1)) > 1e-6:
             chosen.append(int(i))
+    idx = np.array(chosen)
+    stab = mechanism_stability(m, z[idx], pose[idx], inputs[idx])
+    jac = kinematic_jacobians(m, z[idx], pose[idx], inputs[idx])
     sols = []
-    for i in chosen:
+    for j, i in enumerate(chosen):
         rs = rod_states(m, z[i], inputs[i])
         sols.append(Solution(pose=tuple(float(v) for v in pose[i]), inputs=tuple(float(v) for v in inputs[i]),
                              modes=tuple(r.mode for r in rs), rods=rs, residual=float(res_norm[i]),
-                             zrod=tuple(float(v) for v in z[i])))
+                             zrod=tuple(float(v) for v in z[i]), stable=bool(stab.stable[j]),
+                             stability_margin=float(stab.margin[j]), stability_index=int(stab.index[j]),
+                             jacobian=jac.as_dict(j)))
     sols.sort(key=lambda s: (s.modes, round(s.energy / (m.F_ref * m.L_ref), 9), s.inputs, s.pose))
     return sols
 

@@ -24,9 +24,14 @@ class Solution:
     modes : d-mode of each rod.
     rods : the three :class:`~flexkin.rod.state.RodState`.
     residual : infinity norm of the scaled residual of the 9 equations after refinement.
-    stable : stability verdict with the actuators locked, ``None`` if not evaluated.
-    stability_margin : smallest eigenvalue of the constrained second variation (or ``None``).
-    jacobian : dict with ``det_ik``, ``det_fk``, ``cond`` (or ``None``).
+    stable : stability verdict with the actuators locked (:mod:`flexkin.kinematics.stability`).
+    stability_margin : positive iff stable: the smallest eigenvalue of the dimensionless reduced
+        Hessian of the potential over the pose when every rod is stable with its tip pinned,
+        otherwise ``sigma/L - 1 < 0`` for the first conjugate point ``sigma`` of a buckled rod.
+    stability_index : number of independent unstable directions (Morse index; 0 iff stable).
+    jacobian : dict with ``det_ik``, ``det_fk``, ``cond`` and the matrices ``J_IK``, ``J_FK``
+        of Eq. (16) (dimensionless, :mod:`flexkin.kinematics.jacobian`); ``None`` entries at
+        singularities.
     """
 
     pose: tuple[float, float, float]
@@ -37,7 +42,8 @@ class Solution:
     zrod: tuple[float, ...] = field(repr=False, default=())
     stable: bool | None = None
     stability_margin: float | None = None
-    jacobian: dict[str, float] | None = None
+    stability_index: int | None = None
+    jacobian: dict[str, Any] | None = None
 
     @property
     def energy(self) -> float:
@@ -61,6 +67,7 @@ class Solution:
             "modes": list(self.modes),
             "stable": self.stable,
             "stability_margin": self.stability_margin,
+            "stability_index": self.stability_index,
             "residual": self.residual,
             "energy": self.energy,
             "rods": [r.to_dict() for r in self.rods],

@@ -328,3 +328,52 @@ def rod_shape(
     theta = float(t.psi) + 2.0 * np.arctan2(-delta, ku * np.sin(phi))
     moment = EI * 2.0 * (Phi / L) * ku * np.cos(phi)
     return s, x, y, theta, moment
+
+
+def tangent_angles(v: ArrayLike, phis: ArrayLike, s: ArrayLike) -> NDArray[np.float64]:
+    """Tangent angle ``theta(s)`` of many unit rods at unit arc lengths ``s`` (local frame).
+
+    The batched counterpart of the ``theta`` output of :func:`rod_shape`, in the solvers'
+    chart (``ku = tanh v``, ``k' = sech v``): ``phi(s) = am(F(phis) + Phi s | k^2)`` (Jacobi
+    amplitude, polished by Newton on ``F(phi) = u``) and
+    ``theta = psi + 2 atan2(-Delta(phi), k sin(phi))`` (the tangent form behind Eqs. 10–11).
+
+    Parameters
+    ----------
+    v, phis : array_like, shape (n,)
+        Chart coordinates of ``n`` rods.
+    s : array_like, shape (m,)
+        Arc lengths in [0, 1] (unit rod).
+
+    Returns
+    -------
+    ndarray, shape (n, m)
+        ``theta(s)`` with ``theta(0) = 0`` (clamp tangent along the local x axis).
+    """
+    v = np.atleast_1d(np.asarray(v, dtype=float))[:, None]
+    phis = np.atleast_1d(np.asarray(phis, dtype=float))[:, None]
+    s = np.asarray(s, dtype=float)[None, :]
+    ku = np.tanh(v)
+    m = ku * ku
+    kp2 = (1.0 / np.cosh(v)) ** 2
+    F1, _, Kc, _ = _carlson_fe(phis, m, kp2)
+    Phi = np.maximum(Kc - F1, 0.0)
+    u = F1 + Phi * s
+    phi = ellipj(u, np.broadcast_to(m, u.shape))[3]
+    # scipy's ellipj loses accuracy as k' -> 0 (it sees only m = k^2): polish those rods
+    near = np.flatnonzero(kp2[:, 0] < 1e-6)
+    if near.size:
+        p, uu, mm, kk = phi[near], u[near], m[near], kp2[near]
+        for _ in range(8):  # Newton on F(phi) = u, dF/dphi = 1/Delta
+            Fp, _, _, _ = _carlson_fe(p, mm, kk)
+            step = (Fp - uu) * np.sqrt(np.cos(p) ** 2 + kk * np.sin(p) ** 2)
+            p = p - step
+            if np.max(np.abs(step), initial=0.0) < 1e-15:
+                break
+        phi[near] = p
+    c = np.clip(ku * np.sin(phis), -1.0, 1.0)
+    psi = 2.0 * np.arctan2(np.sqrt(np.maximum(1.0 - c * c, 0.0)), c)
+    delta = np.sqrt(np.cos(phi) ** 2 + kp2 * np.sin(phi) ** 2)
+    theta = psi + 2.0 * np.arctan2(-delta, ku * np.sin(phi))
+    theta = theta - theta[:, :1] if s[0, 0] == 0.0 else theta
+    return np.where(Phi > 0.0, theta, 0.0)

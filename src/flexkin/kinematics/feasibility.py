@@ -1,0 +1,700 @@
+"""Feasibility checks of an equilibrium (paper §4, last step; SPEC §1 "feasibility checks").
+
+The kinematics report *every* equilibrium; this module says which of them a real device can
+actually take, and why not.  :func:`check_feasibility` runs five independent checks on one
+:class:`~flexkin.kinematics.results.Solution` and returns a frozen :class:`Feasibility`:
+
+1. **rod–rod contact** (different rods).  The centre lines, sampled at ``n_samples`` points
+   uniformly in arc length (:meth:`RodState.shape`), are polylines.  Two rods collide if
+   their polylines cross, or if they come closer than ``r_i + r_j + clearance``: with known
+   radii the rods are *capsules* (the Minkowski sum of the centre line and a disc of the
+   section radius), without a radius a rod has zero thickness.
+2. **self-intersection** (loops, typical of d-mode 2).  Non-adjacent segments of the same
+   polyline crossing.  With a radius (or a clearance), also *self-contact*: two points of the
+   rod further apart than ``pi r_eff`` in arc length closer than ``2 r_eff``, with
+   ``r_eff = r + clearance/2`` (points nearer along the rod are always that close in a bent
+   rod whose radius of curvature is >= r, so they are not compared).
+3. **rod–platform contact**.  The platform is the triangle ``B_1 B_2 B_3`` at the
+   solution's pose (:meth:`Platform.world`).  A rod collides if its centre line enters the
+   triangle's interior, or (capsule) comes closer than ``r_i + clearance`` to it.  The rod's
+   own last portion near its pin ``B_i``, of arc length ``tip_exclusion`` (default
+   ``r_i + clearance + 0.05 * shortest platform edge``), is exempt: a rod ending on the
+   boundary is fine, and so is a rod whose pin fitting reaches a little over the plate.
+4. **bending strain**.  ``max |theta'| * r`` per rod, against ``max_strain`` (argument) or
+   else the mechanism's ``[limits] max_strain`` (:attr:`Mechanism.max_strain`).  The peak
+   curvature is computed in closed form (below), not from the samples.  Without a radius
+   the rod's strain is ``None``; without a limit the strains are reported but not judged.
+   Both cases are listed in :attr:`Feasibility.skipped`, never in the reasons.
+5. **actuator strokes**: inputs outside a leg's ``range`` (:meth:`Leg.in_range`).
+
+Peak curvature in closed form
+-----------------------------
+In the unified chart of :mod:`flexkin.rod.closed_form`, ``theta'(s) = 2 lambda ku cos(phi(s))``
+with ``lambda = sqrt(R/EI)`` and the amplitude ``phi`` increasing from ``phis`` at the clamp
+to ``pi/2`` at the pinned tip.  So ``max |theta'| = 2 lambda |ku|`` if ``[phis, pi/2]``
+contains a multiple of pi (``phis <= 0``: every d-mode >= 2 rod and mode-1 rods whose
+curvature peaks inside), else ``2 lambda |ku| cos(phis) = |m0|/EI`` (peak at the clamp).
+This is exact (no sampling error), unlike the maximum of sampled curvatures, which misses
+an interior peak by O(h^2); :func:`rod_max_curvature` can add the sampled maximum as a
+safety net.
+
+Tolerances and sampling
+-----------------------
+The polylines are chords of the true curves: a chord deviates from the arc by at most
+``h^2 kappa / 8`` (``h = L/(n_samples - 1)``), 6e-5 L for a tight loop (kappa L = 20) at
+the default 200 samples.  A transversal crossing is therefore detected; only grazing
+contacts (overlaps shallower than that deviation) are uncertain, and distances carry that
+error.  Two segments "touch" (zero distance without a proper crossing: T-contacts, collinear
+overlaps) when their distance is below ``1e-12`` times the mechanism's length scale
+(:data:`TOUCH_RTOL`).  The platform tests use the same absolute tolerance: a point is
+inside only if it is further than that from every edge, and a segment crosses an edge only
+if its end points are further than that from the edge's line, so a rod tip lying on the
+boundary (to the solver's residual) is never "inside" or "crossing".
+
+All geometry is vectorised numpy.  Segment pairs are found with a two-level bounding-box
+prefilter (:func:`polyline_crossings`): blocks of 8 consecutive segments whose boxes are
+further apart than an upper bound of the distance (or than the contact threshold) are never
+compared segment by segment; the remaining pairs get the exact segment–segment distance
+(the smallest of four point–segment distances, or 0 for a proper crossing by orientation
+tests).  The result equals brute force.  At 200 samples one solution takes ~10 ms, mostly
+sampling the three rods.
+
+Rods, legs and inputs are numbered from 1 in reasons and in the index tuples of
+:class:`Feasibility`, like the SPEC's ``B_1, B_2, B_3``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "Feasibility",
+    "check_feasibility",
+    "check_solutions",
+    "point_segment_distances",
+    "segment_distances",
+    "polyline_crossings",
+    "self_crossings",
+    "polyline_platform",
+    "rod_max_curvature",
+    "inputs_out_of_range",
+]
+
+#: default exempt length near a rod's own pin, as a fraction of the shortest platform edge
+TIP_EXCLUSION_FRACTION = 0.05
+
+#: relative tolerance (times the mechanism's length scale) for "touching" and "inside"
+TOUCH_RTOL = 1e-12
+
+#: the rod pairs, numbered from 1, in the order of :attr:`Feasibility.rod_distances`
+_PAIRS1 = ((1, 2), (1, 3), (2, 3))
+
+
+# --------------------------------------------------------------------------------------
+# result object
+# --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Feasibility:
+    """Verdict of the feasibility checks on one equilibrium.
+
+    Attributes
+    ----------
+    feasible : bool
+        ``True`` iff ``reasons`` is empty.
+    reasons : tuple of str
+        One short line per violation, e.g. ``"rods 1 and 3 intersect"``,
+        ``"rod 2 self-intersects"``, ``"rod 2 crosses the platform"``,
+        ``"strain 0.052 > 0.04 on rod 2"``, ``"input 1 = 0.35 m outside range [-0.1, 0.3]"``.
+    max_strain : float or None
+        Largest bending strain over the rods whose radius is known (``None`` if none is).
+    min_rod_distance : float
+        Smallest distance between the centre lines of two different rods (m); 0 if two rods
+        cross.  Compare with ``r_i + r_j`` for the surface gap.
+    strains : tuple of (float or None)
+        Bending strain ``max |curvature| * radius`` of each rod (``None`` without radius).
+    max_curvatures : tuple of float
+        Peak ``|theta'|`` of each rod (1/m).
+    strain_limit : float or None
+        Allowable strain used (argument, else the mechanism's), ``None`` if there is none.
+    rod_collisions : tuple of (int, int)
+        Pairs of rods (1-based, ``i < j``) that cross or are closer than allowed.
+    rod_distances : tuple of float
+        Centre-line distance (m) of the pairs (1, 2), (1, 3), (2, 3), in that order (0 for
+        a crossing).
+    self_intersecting : tuple of int
+        Rods (1-based) that cross or touch themselves.
+    self_crossings : tuple of int
+        Number of crossing pairs of non-adjacent segments of each rod (a simple loop: 1).
+    platform_collisions : tuple of int
+        Rods (1-based) that enter the platform or come closer than allowed.
+    platform_distances : tuple of float
+        Distance (m) from each rod, without its exempt tail, to the platform triangle; 0 if
+        it enters it.
+    inputs_out_of_range : tuple of int
+        Legs (1-based) whose input lies outside their ``range``.
+    skipped : tuple of str
+        Checks that could not be made, e.g. ``"strain: no allowable strain given"``.
+    n_samples : int
+        Points per rod used for the geometric checks.
+    clearance : float
+        Extra gap (m) that was required between bodies.
+    """
+
+    feasible: bool
+    reasons: tuple[str, ...]
+    max_strain: float | None
+    min_rod_distance: float
+    strains: tuple[float | None, ...] = ()
+    max_curvatures: tuple[float, ...] = ()
+    strain_limit: float | None = None
+    rod_collisions: tuple[tuple[int, int], ...] = ()
+    rod_distances: tuple[float, ...] = ()
+    self_intersecting: tuple[int, ...] = ()
+    self_crossings: tuple[int, ...] = ()
+    platform_collisions: tuple[int, ...] = ()
+    platform_distances: tuple[float, ...] = ()
+    inputs_out_of_range: tuple[int, ...] = ()
+    skipped: tuple[str, ...] = ()
+    n_samples: int = 200
+    clearance: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (plain floats, lists and strings; rods numbered from 1)."""
+        return {
+            "feasible": self.feasible,
+            "reasons": list(self.reasons),
+            "max_strain": self.max_strain,
+            "strain_limit": self.strain_limit,
+            "strains": list(self.strains),
+            "max_curvatures": list(self.max_curvatures),
+            "min_rod_distance": self.min_rod_distance,
+            "rod_distances": {f"{i}-{j}": d for (i, j), d in zip(_PAIRS1, self.rod_distances)},
+            "rod_collisions": [list(p) for p in self.rod_collisions],
+            "self_intersecting": list(self.self_intersecting),
+            "self_crossings": list(self.self_crossings),
+            "platform_collisions": list(self.platform_collisions),
+            "platform_distances": list(self.platform_distances),
+            "inputs_out_of_range": list(self.inputs_out_of_range),
+            "skipped": list(self.skipped),
+            "n_samples": self.n_samples,
+            "clearance": self.clearance,
+        }
+
+
+# --------------------------------------------------------------------------------------
+# geometry primitives (pure, vectorised)
+# --------------------------------------------------------------------------------------
+def point_segment_distances(points: ArrayLike, starts: ArrayLike, ends: ArrayLike) -> NDArray[np.float64]:
+    """Distances from every point to every segment.
+
+    Parameters
+    ----------
+    points : array_like, shape (P, 2)
+    starts, ends : array_like, shape (S, 2)
+        Segment end points (a zero-length segment is a point).
+
+    Returns
+    -------
+    ndarray, shape (P, S)
+    """
+    p = np.asarray(points, dtype=float)
+    a = np.asarray(starts, dtype=float)
+    d = np.asarray(ends, dtype=float) - a
+    len2 = d[:, 0] ** 2 + d[:, 1] ** 2
+    wx = p[:, None, 0] - a[None, :, 0]
+    wy = p[:, None, 1] - a[None, :, 1]
+    safe = np.where(len2 > 0.0, len2, 1.0)
+    t = np.clip((wx * d[None, :, 0] + wy * d[None, :, 1]) / safe, 0.0, 1.0)
+    t = np.where(len2 > 0.0, t, 0.0)
+    return np.hypot(wx - t * d[None, :, 0], wy - t * d[None, :, 1])
+
+
+def _proper_crossings(p1: NDArray, p2: NDArray, q1: NDArray, q2: NDArray, tol: float = 0.0) -> NDArray[np.bool_]:
+    """Whether segments ``p1p2`` and ``q1q2`` (row-wise, shape (K, 2)) cross at one interior point.
+
+    With ``tol > 0`` the end points of each segment must lie further than ``tol`` from the
+    other segment's line (an end point lying on the other segment is a touch, not a crossing).
+    """
+    ex, ey = p2[:, 0] - p1[:, 0], p2[:, 1] - p1[:, 1]
+    fx, fy = q2[:, 0] - q1[:, 0], q2[:, 1] - q1[:, 1]
+    d1 = ex * (q1[:, 1] - p1[:, 1]) - ey * (q1[:, 0] - p1[:, 0])
+    d2 = ex * (q2[:, 1] - p1[:, 1]) - ey * (q2[:, 0] - p1[:, 0])
+    d3 = fx * (p1[:, 1] - q1[:, 1]) - fy * (p1[:, 0] - q1[:, 0])
+    d4 = fx * (p2[:, 1] - q1[:, 1]) - fy * (p2[:, 0] - q1[:, 0])
+    e = tol * np.hypot(ex, ey)  # |d1|, |d2| = |p2 - p1| * distance of q1, q2 to the line p1p2
+    f = tol * np.hypot(fx, fy)
+    return ((((d1 > e) & (d2 < -e)) | ((d1 < -e) & (d2 > e)))
+            & (((d3 > f) & (d4 < -f)) | ((d3 < -f) & (d4 > f))))
+
+
+def _bbox_overlap(P: NDArray, Q: NDArray, pad: float) -> NDArray[np.bool_]:
+    """(n-1, m-1) mask of segment pairs of polylines P, Q whose bounding boxes (grown by ``pad``) overlap."""
+    plo, phi = np.minimum(P[:-1], P[1:]) - pad, np.maximum(P[:-1], P[1:]) + pad
+    qlo, qhi = np.minimum(Q[:-1], Q[1:]), np.maximum(Q[:-1], Q[1:])
+    return ((plo[:, None, 0] <= qhi[None, :, 0]) & (qlo[None, :, 0] <= phi[:, None, 0])
+            & (plo[:, None, 1] <= qhi[None, :, 1]) & (qlo[None, :, 1] <= phi[:, None, 1]))
+
+
+def segment_distances(P: ArrayLike, Q: ArrayLike, *, tol: float = 0.0) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Distance between every segment of polyline ``P`` and every segment of polyline ``Q``.
+
+    In the plane, two segments that do not cross are closest at an end point of one of them,
+    so the distance is the smallest of four point–segment distances, or 0 for a proper
+    crossing.  Proper crossings are tested only where the segments' bounding boxes overlap.
+
+    Parameters
+    ----------
+    P : array_like, shape (n, 2)
+    Q : array_like, shape (m, 2)
+        Polyline vertices (n, m >= 2).
+    tol : float, optional
+        A crossing is proper only if every end point lies further than ``tol`` from the other
+        segment's line (see :func:`_proper_crossings`).
+
+    Returns
+    -------
+    dist : ndarray, shape (n-1, m-1)
+        Segment–segment distances (0 where they cross).
+    crossing : ndarray of bool, shape (n-1, m-1)
+        Proper crossings (one common interior point).
+    """
+    P = np.asarray(P, dtype=float)
+    Q = np.asarray(Q, dtype=float)
+    dpq = point_segment_distances(P, Q[:-1], Q[1:])  # (n, m-1)
+    dqp = point_segment_distances(Q, P[:-1], P[1:])  # (m, n-1)
+    dist = np.minimum(np.minimum(dpq[:-1], dpq[1:]), np.minimum(dqp[:-1], dqp[1:]).T)
+    ii, jj = np.nonzero(_bbox_overlap(P, Q, 0.0))
+    crossing = np.zeros(dist.shape, dtype=bool)
+    if ii.size:
+        hit = _proper_crossings(P[ii], P[ii + 1], Q[jj], Q[jj + 1], tol)
+        crossing[ii[hit], jj[hit]] = True
+        dist[ii[hit], jj[hit]] = 0.0
+    return dist, crossing
+
+
+def _d2_point_segment(px: NDArray, py: NDArray, ax: NDArray, ay: NDArray,
+                      bx: NDArray, by: NDArray) -> NDArray[np.float64]:
+    """Squared distance from points (px, py) to segments (a, b), component arrays (broadcast)."""
+    ux, uy = bx - ax, by - ay
+    wx, wy = px - ax, py - ay
+    l2 = ux * ux + uy * uy
+    t = (wx * ux + wy * uy) / np.where(l2 > 0.0, l2, 1.0)  # numerator is 0 when l2 == 0
+    np.clip(t, 0.0, 1.0, out=t)
+    ex, ey = wx - t * ux, wy - t * uy
+    return ex * ex + ey * ey
+
+
+def _segment_pairs(P: NDArray, Q: NDArray, i: NDArray, j: NDArray) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Distances and proper crossings of segments ``P[i]P[i+1]`` and ``Q[j]Q[j+1]`` (1-D index arrays)."""
+    ax, ay, bx, by = P[i, 0], P[i, 1], P[i + 1, 0], P[i + 1, 1]
+    cx, cy, dx, dy = Q[j, 0], Q[j, 1], Q[j + 1, 0], Q[j + 1, 1]
+    d2 = np.minimum(np.minimum(_d2_point_segment(ax, ay, cx, cy, dx, dy), _d2_point_segment(bx, by, cx, cy, dx, dy)),
+                    np.minimum(_d2_point_segment(cx, cy, ax, ay, bx, by), _d2_point_segment(dx, dy, ax, ay, bx, by)))
+    cross = _proper_crossings(np.stack([ax, ay], -1), np.stack([bx, by], -1),
+                              np.stack([cx, cy], -1), np.stack([dx, dy], -1))
+    return np.where(cross, 0.0, np.sqrt(d2)), cross
+
+
+def _block_boxes(P: NDArray, block: int) -> tuple[NDArray, NDArray]:
+    """Bounding boxes (lo, hi), each (n_blocks, 2), of consecutive runs of ``block`` segments."""
+    starts = np.arange(0, len(P) - 1, block)
+    lo = np.minimum.reduceat(np.minimum(P[:-1], P[1:]), starts, axis=0)
+    hi = np.maximum.reduceat(np.maximum(P[:-1], P[1:]), starts, axis=0)
+    return lo, hi
+
+
+def _distance_bound(P: NDArray, Q: NDArray, *, same: bool, min_gap: int, block: int) -> float:
+    """Upper bound of the (gap-restricted) polyline distance from a subsample of vertex pairs.
+
+    Vertices ``k`` of P and ``l`` of Q lie on segments that may be compared (``j - i >=
+    min_gap`` with ``i in {k-1, k}``, ``j in {l-1, l}`` when ``same``) iff ``l - k >= min_gap - 1``.
+    """
+    kp = np.unique(np.r_[np.arange(0, len(P), block), len(P) - 1])
+    kq = np.unique(np.r_[np.arange(0, len(Q), block), len(Q) - 1])
+    dv = np.hypot(P[kp, None, 0] - Q[None, kq, 0], P[kp, None, 1] - Q[None, kq, 1])
+    if same:
+        dv = np.where(kq[None, :] - kp[:, None] >= min_gap - 1, dv, np.inf)
+    return float(dv.min()) if dv.size else math.inf
+
+
+def _candidate_pairs(P: NDArray, Q: NDArray, *, same: bool, min_gap: int, within: float,
+                     block: int = 8) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Segment pairs ``(i, j)`` that may be closer than ``within`` (bounding-box prefilter).
+
+    Blocks of ``block`` consecutive segments whose bounding boxes are further apart than
+    ``within`` are never compared segment by segment.  With ``same`` (one polyline), only
+    ``i < j`` with ``j - i >= min_gap``.
+    """
+    nP, nQ = len(P) - 1, len(Q) - 1
+    plo, phi = _block_boxes(P, block)
+    qlo, qhi = _block_boxes(Q, block)
+    gx = np.maximum(np.maximum(qlo[None, :, 0] - phi[:, None, 0], plo[:, None, 0] - qhi[None, :, 0]), 0.0)
+    gy = np.maximum(np.maximum(qlo[None, :, 1] - phi[:, None, 1], plo[:, None, 1] - qhi[None, :, 1]), 0.0)
+    cand = gx * gx + gy * gy <= within * within
+    if same:
+        a0 = np.arange(len(plo)) * block
+        b1 = np.minimum((np.arange(len(qlo)) + 1) * block, nQ) - 1
+        cand &= (b1[None, :] - a0[:, None]) >= min_gap
+    A, Bq = np.nonzero(cand)
+    off = np.arange(block)
+    i = np.broadcast_to((A[:, None] * block + off)[:, :, None], (len(A), block, block))
+    j = np.broadcast_to((Bq[:, None] * block + off)[:, None, :], (len(A), block, block))
+    valid = (i < nP) & (j < nQ)
+    if same:
+        valid &= (j - i) >= min_gap
+    return i[valid], j[valid]
+
+
+def polyline_crossings(P: ArrayLike, Q: ArrayLike, *, touch: float = 0.0) -> tuple[int, float]:
+    """Number of crossing segment pairs and distance between two polylines.
+
+    Bounding-box prefilter in two levels: an upper bound ``U`` of the distance from a
+    subsample of vertex pairs, then only blocks of 8 consecutive segments whose bounding
+    boxes are within ``max(U, touch)`` are compared segment by segment; they hold every
+    crossing and the closest pair, so the result equals the brute-force one.
+
+    Parameters
+    ----------
+    P, Q : array_like, shapes (n, 2), (m, 2)
+        Polylines (n, m >= 2).
+    touch : float
+        Segment pairs closer than this (without a proper crossing) count as crossings too
+        (T-contacts, collinear overlaps).
+
+    Returns
+    -------
+    crossings : int
+        Number of segment pairs that cross or touch.
+    distance : float
+        Smallest distance between the polylines (0 if they cross).
+    """
+    P = np.asarray(P, dtype=float)
+    Q = np.asarray(Q, dtype=float)
+    U = _distance_bound(P, Q, same=False, min_gap=0, block=8)
+    i, j = _candidate_pairs(P, Q, same=False, min_gap=0, within=max(U, float(touch)))
+    d, cross = _segment_pairs(P, Q, i, j)
+    hits = cross | (d <= touch)
+    return int(np.count_nonzero(hits)), (float(d.min()) if d.size else math.inf)
+
+
+def self_crossings(P: ArrayLike, *, min_gap: int = 2, touch: float = 0.0,
+                   within: float | None = None) -> tuple[int, float]:
+    """Self-crossings of a polyline: segments ``i < j`` with ``j - i >= min_gap``.
+
+    Parameters
+    ----------
+    P : array_like, shape (n, 2)
+    min_gap : int
+        Smallest index difference of compared segments (>= 2: adjacent segments share a
+        vertex and are never compared).
+    touch : float
+        Distance below which two compared segments count as touching.
+    within : float, optional
+        Only distances up to this value are needed (faster: fewer pairs compared); by
+        default the exact smallest distance is returned.
+
+    Returns
+    -------
+    crossings : int
+        Number of compared segment pairs that cross or touch (a simple loop gives 1).
+    distance : float
+        Smallest distance between compared segments (0 if two cross; ``inf`` if none are
+        compared or, with ``within``, if none is within it).
+    """
+    P = np.asarray(P, dtype=float)
+    gap = max(int(min_gap), 2)
+    if within is None:
+        within = _distance_bound(P, P, same=True, min_gap=gap, block=8)
+    i, j = _candidate_pairs(P, P, same=True, min_gap=gap, within=max(float(within), float(touch)))
+    d, cross = _segment_pairs(P, P, i, j)
+    hits = cross | (d <= touch)
+    return int(np.count_nonzero(hits)), (float(d.min()) if d.size else math.inf)
+
+
+def polyline_platform(P: ArrayLike, triangle: ArrayLike, *, tol: float = 0.0) -> tuple[bool, float]:
+    """Whether a polyline enters a triangle's interior, and its distance to the triangle.
+
+    Parameters
+    ----------
+    P : array_like, shape (n, 2)
+        Polyline (n >= 1).
+    triangle : array_like, shape (3, 2)
+        Vertices, either orientation.
+    tol : float
+        A vertex counts as inside only if it is further than ``tol`` from every edge, and a
+        segment crosses an edge only if its end points are further than ``tol`` from the
+        edge's line and vice versa (so a rod ending on the boundary does not cross it).
+
+    Returns
+    -------
+    inside : bool
+        A vertex of ``P`` strictly inside, or a segment properly crossing an edge (such a
+        segment passes through the interior next to the crossing point).
+    distance : float
+        0 if ``inside``, else the distance between the polyline and the (closed) triangle.
+    """
+    P = np.asarray(P, dtype=float).reshape(-1, 2)
+    T = np.asarray(triangle, dtype=float)
+    e = np.roll(T, -1, axis=0) - T  # edges T_k -> T_k+1
+    area2 = e[0, 0] * e[1, 1] - e[0, 1] * e[1, 0]
+    sign = 1.0 if area2 > 0 else -1.0  # make the interior the left side of every edge
+    elen = np.hypot(e[:, 0], e[:, 1])
+    sd = sign * (e[None, :, 0] * (P[:, None, 1] - T[None, :, 1])
+                 - e[None, :, 1] * (P[:, None, 0] - T[None, :, 0])) / elen[None, :]
+    if np.any(np.min(sd, axis=1) > tol):
+        return True, 0.0
+    if len(P) >= 2:
+        Tc = np.vstack([T, T[:1]])
+        dist, crossing = segment_distances(P, Tc, tol=tol)
+        if crossing.any():
+            return True, 0.0
+        return False, float(dist.min())
+    return False, float(point_segment_distances(P, T, np.roll(T, -1, axis=0)).min())
+
+
+def _truncate(P: NDArray[np.float64], length: float, cut: float) -> NDArray[np.float64]:
+    """The part ``s <= length - cut`` of a polyline sampled uniformly in arc length."""
+    s_end = length - cut
+    if s_end <= 0.0:
+        return P[:1]
+    s = np.linspace(0.0, length, len(P))
+    k = int(np.searchsorted(s, s_end, side="right"))  # samples 0..k-1 have s <= s_end
+    if k >= len(P):
+        return P
+    w = (s_end - s[k - 1]) / (s[k] - s[k - 1])
+    end = (1.0 - w) * P[k - 1] + w * P[k]
+    return np.vstack([P[:k], end[None]])
+
+
+# --------------------------------------------------------------------------------------
+# strain and inputs
+# --------------------------------------------------------------------------------------
+def rod_max_curvature(rod: Any, n_samples: int = 0) -> float:
+    """Peak ``|theta'(s)|`` of a rod (1/m), in closed form.
+
+    ``2 |ku| sqrt(R/EI)`` if the clamp amplitude ``phis <= 0`` (the curvature has an
+    interior extremum), else the clamp value ``2 |ku| sqrt(R/EI) cos(phis) = |m0|/EI``.
+
+    Parameters
+    ----------
+    rod : RodState
+    n_samples : int, optional
+        If > 1, also sample :meth:`RodState.curvature` and return the larger value (a
+        safety net; the closed form is exact).
+
+    Returns
+    -------
+    float
+    """
+    lam = math.sqrt(max(float(rod.R), 0.0) / float(rod.EI))
+    peak = 2.0 * abs(float(rod.ku)) * lam
+    kmax = peak if float(rod.phis) <= 0.0 else peak * abs(math.cos(float(rod.phis)))
+    kmax = max(kmax, abs(float(rod.base_moment)) / float(rod.EI))
+    if n_samples > 1:
+        kmax = max(kmax, float(np.max(np.abs(rod.curvature(n_samples)))))
+    return kmax
+
+
+def _fmt(v: float) -> str:
+    return f"{v:.6g}"
+
+
+def inputs_out_of_range(mechanism: Any, inputs: Sequence[float]) -> list[tuple[int, str]]:
+    """Legs whose input lies outside their ``range``, with a reason for each.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    inputs : sequence of three floats
+        Inputs in internal units (m, rad for revolute legs).
+
+    Returns
+    -------
+    list of (int, str)
+        ``(leg number from 1, reason)``; the reason shows display units (m or deg).
+    """
+    out: list[tuple[int, str]] = []
+    for i, (leg, u) in enumerate(zip(mechanism.legs, inputs), 1):
+        if leg.range is None or bool(leg.in_range(u)):
+            continue
+        lo, hi = (leg.to_display(v) for v in leg.range)
+        out.append((i, f"input {i} = {_fmt(leg.to_display(u))} {leg.input_unit} "
+                        f"outside range [{_fmt(lo)}, {_fmt(hi)}]"))
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# the check
+# --------------------------------------------------------------------------------------
+def check_feasibility(
+    mechanism: Any,
+    solution: Any,
+    *,
+    n_samples: int = 200,
+    max_strain: float | None = None,
+    clearance: float = 0.0,
+    tip_exclusion: float | None = None,
+) -> Feasibility:
+    """Run all feasibility checks on one equilibrium (see the module docstring).
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        The mechanism the solution belongs to (rod radii, leg ranges, platform, limits).
+    solution : Solution
+        One equilibrium (``pose``, ``inputs``, ``rods``).
+    n_samples : int, optional
+        Points per rod centre line for the geometric checks (>= 3).
+    max_strain : float, optional
+        Allowable bending strain; overrides ``mechanism.max_strain``.
+    clearance : float, optional
+        Extra gap (m, >= 0) required between rods, within a rod and between a rod and
+        the platform.
+    tip_exclusion : float, optional
+        Arc length (m) before each rod's pin exempt from the platform check; default
+        ``r_i + clearance + 0.05 * shortest platform edge``.
+
+    Returns
+    -------
+    Feasibility
+
+    Raises
+    ------
+    ValueError
+        For ``n_samples < 3``, a negative clearance or tip exclusion, or a non-positive
+        ``max_strain``.
+    """
+    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 3:
+        raise ValueError(f"n_samples must be an integer >= 3, got {n_samples!r}")
+    clearance = float(clearance)
+    if not (math.isfinite(clearance) and clearance >= 0.0):
+        raise ValueError(f"clearance must be a finite number >= 0, got {clearance!r}")
+    if tip_exclusion is not None and not (math.isfinite(float(tip_exclusion)) and float(tip_exclusion) >= 0.0):
+        raise ValueError(f"tip_exclusion must be a finite number >= 0, got {tip_exclusion!r}")
+    limit = mechanism.max_strain if max_strain is None else float(max_strain)
+    if limit is not None and not (math.isfinite(limit) and limit > 0.0):
+        raise ValueError(f"max_strain must be a finite number > 0, got {max_strain!r}")
+
+    rods = tuple(solution.rods)
+    radii = [leg.rod.radius for leg in mechanism.legs]
+    r = [0.0 if ri is None else float(ri) for ri in radii]
+    scale = max([float(mechanism.length_scale)] + [float(rod.length) for rod in rods])
+    touch = TOUCH_RTOL * scale
+    shapes = [np.asarray(rod.shape(int(n_samples)), dtype=float) for rod in rods]
+    reasons: list[str] = []
+    skipped: list[str] = []
+
+    # 1. rod-rod
+    rod_collisions: list[tuple[int, int]] = []
+    rod_distances: list[float] = []
+    for i1, j1 in _PAIRS1:
+        i, j = i1 - 1, j1 - 1
+        n_cross, d = polyline_crossings(shapes[i], shapes[j], touch=touch)
+        rod_distances.append(d)
+        need = r[i] + r[j] + clearance
+        if n_cross:
+            rod_collisions.append((i1, j1))
+            reasons.append(f"rods {i1} and {j1} intersect")
+        elif d < need:
+            rod_collisions.append((i1, j1))
+            reasons.append(f"rods {i1} and {j1} collide: distance {_fmt(d)} m < {_fmt(need)} m")
+    min_rod_distance = min(rod_distances)
+
+    # 2. self-intersection / self-contact
+    self_hits: list[int] = []
+    self_counts: list[int] = []
+    for i, (rod, P) in enumerate(zip(rods, shapes)):
+        r_eff = r[i] + 0.5 * clearance
+        h = float(rod.length) / (n_samples - 1)
+        gap = max(2, 1 + math.ceil(math.pi * r_eff / h)) if h > 0 else 2
+        n_cross, _ = self_crossings(P, min_gap=2, touch=touch, within=touch)
+        d_contact = math.inf
+        if r_eff > 0.0 and not n_cross:
+            _, d_contact = self_crossings(P, min_gap=gap, touch=touch, within=2.0 * r_eff)
+        self_counts.append(n_cross)
+        if n_cross:
+            self_hits.append(i + 1)
+            reasons.append(f"rod {i + 1} self-intersects")
+        elif d_contact < 2.0 * r_eff:
+            self_hits.append(i + 1)
+            reasons.append(f"rod {i + 1} self-contact: distance {_fmt(d_contact)} m < {_fmt(2.0 * r_eff)} m")
+
+    # 3. rod-platform
+    B = np.asarray(mechanism.platform.world(np.asarray(solution.pose, dtype=float)), dtype=float)
+    edges = np.hypot(*(np.roll(B, -1, axis=0) - B).T)
+    platform_hits: list[int] = []
+    platform_distances: list[float] = []
+    for i, (rod, P) in enumerate(zip(rods, shapes)):
+        cut = (r[i] + clearance + TIP_EXCLUSION_FRACTION * float(edges.min())) if tip_exclusion is None \
+            else float(tip_exclusion)
+        Q = _truncate(P, float(rod.length), cut)
+        inside, d = polyline_platform(Q, B, tol=touch)
+        platform_distances.append(d)
+        need = r[i] + clearance
+        if inside:
+            platform_hits.append(i + 1)
+            reasons.append(f"rod {i + 1} crosses the platform")
+        elif d < need:
+            platform_hits.append(i + 1)
+            reasons.append(f"rod {i + 1} touches the platform: distance {_fmt(d)} m < {_fmt(need)} m")
+
+    # 4. strain
+    kmax = [rod_max_curvature(rod) for rod in rods]
+    strains: list[float | None] = [None if radii[i] is None else r[i] * kmax[i] for i in range(3)]
+    known = [s for s in strains if s is not None]
+    worst = max(known) if known else None
+    if limit is None:
+        skipped.append("strain: no allowable strain given (max_strain / [limits] max_strain)")
+    for i, s in enumerate(strains):
+        if s is None:
+            if limit is not None:
+                skipped.append(f"strain: rod {i + 1} has no radius")
+        elif limit is not None and s > limit:
+            reasons.append(f"strain {_fmt(s)} > {_fmt(limit)} on rod {i + 1}")
+
+    # 5. actuator strokes
+    bad_inputs = inputs_out_of_range(mechanism, solution.inputs)
+    reasons.extend(msg for _, msg in bad_inputs)
+
+    return Feasibility(
+        feasible=not reasons,
+        reasons=tuple(reasons),
+        max_strain=worst,
+        min_rod_distance=float(min_rod_distance),
+        strains=tuple(strains),
+        max_curvatures=tuple(float(k) for k in kmax),
+        strain_limit=None if limit is None else float(limit),
+        rod_collisions=tuple(rod_collisions),
+        rod_distances=tuple(float(d) for d in rod_distances),
+        self_intersecting=tuple(self_hits),
+        self_crossings=tuple(self_counts),
+        platform_collisions=tuple(platform_hits),
+        platform_distances=tuple(float(d) for d in platform_distances),
+        inputs_out_of_range=tuple(i for i, _ in bad_inputs),
+        skipped=tuple(skipped),
+        n_samples=int(n_samples),
+        clearance=clearance,
+    )
+
+
+def check_solutions(mechanism: Any, solutions: Iterable[Any], **kwargs: Any) -> tuple[Feasibility, ...]:
+    """:func:`check_feasibility` on every solution (e.g. a :class:`KinematicsResult`).
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    solutions : iterable of Solution
+    **kwargs
+        Passed to :func:`check_feasibility`.
+
+    Returns
+    -------
+    tuple of Feasibility
+        In the order of ``solutions``.
+    """
+    return tuple(check_feasibility(mechanism, s, **kwargs) for s in solutions)
