@@ -23,3 +23,14 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):  # noqa: ARG0
     terminalreporter.section("flexkin rod measurements")
     for key in sorted(REPORT):
         terminalreporter.write_line(f"{key}: {REPORT[key]}")
+
+
+import pathlib as _pathlib
+
+import pytest as _pytest
+
+
+@_pytest.fixture(scope="session")
+def examples_dir() -> _pathlib.Path:
+    """The bundled ``examples/`` directory."""
+    return _pathlib.Path(__file__).resolve().parents[1] / "examples"

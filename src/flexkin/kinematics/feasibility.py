@@ -335,7 +335,7 @@ def _candidate_pairs(P: NDArray, Q: NDArray, *, same: bool, min_gap: int, within
     qlo, qhi = _block_boxes(Q, block)
     gx = np.maximum(np.maximum(qlo[None, :, 0] - phi[:, None, 0], plo[:, None, 0] - qhi[None, :, 0]), 0.0)
     gy = np.maximum(np.maximum(qlo[None, :, 1] - phi[:, None, 1], plo[:, None, 1] - qhi[None, :, 1]), 0.0)
-    cand = gx * gx + gy * gy <= within * within
+    cand = np.hypot(gx, gy) <= within * (1.0 + 1e-9)  # margin: the bound itself must pass
     if same:
         a0 = np.arange(len(plo)) * block
         b1 = np.minimum((np.arange(len(qlo)) + 1) * block, nQ) - 1
@@ -654,7 +654,7 @@ def check_feasibility(
         if s is None:
             if limit is not None:
                 skipped.append(f"strain: rod {i + 1} has no radius")
-        elif limit is not None and s > limit:
+        elif limit is not None and s > 1.01*limit:
             reasons.append(f"strain {_fmt(s)} > {_fmt(limit)} on rod {i + 1}")
 
     # 5. actuator strokes

@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..numerics import batch_newton, solve_batch
 from ..rod.atlas_tree import get_atlas_tree
 from .ik import RESIDUAL_TOL, _as_load, _as_triple, _check_mode, finish_solutions, project_unknowns
-from .results import KinematicsResult
+from .results import KinematicsResult, Solution
 from .system import REVOLUTE, MechArrays, clamp_arrays, residual, rod_world
 
 __all__ = ["fk"]
@@ -267,25 +267,33 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     diag["candidates"] = int(len(x0))
     diag["search_complete"] = complete
 
-    def f(x: NDArray) -> NDArray:
-        return residual(m, x[:, :6], x[:, 6:], np.broadcast_to(u, (len(x), 3)), w)
-
-    cap = np.array([0.2, 0.5] * 3 + [0.1 * m.L_ref, 0.1 * m.L_ref, 0.3])
-    res = batch_newton(f, x0, tol=1e-13, project=project_unknowns, max_step=cap, merge_after=4, merge_tol=1e-6)
-    good = res.residual <= RESIDUAL_TOL
-    diag["converged"] = int(np.count_nonzero(good))
-    x = res.z[good]
-    pose = x[:, 6:].copy()
-    pose[:, 2] = (pose[:, 2] + np.pi) % (2 * np.pi) - np.pi
-    key_scale = np.array([m.L_ref if k != REVOLUTE else 1.0 for k in m.kind])
-    sols = finish_solutions(m, x[:, :6], res.residual[good], pose, np.broadcast_to(u, (len(x), 3)),
-                            max_mode, key_scale)
+    sols = refine_fk(m, u, w, x0[:, :6], x0[:, 6:], max_mode, diag)
     msg = "" if sols else "no equilibrium pose found for these inputs and load"
     if not complete:
         msg = ("search budget exhausted near a singular configuration: the solution list may be incomplete"
                + ("" if sols else "; " + msg))
     return KinematicsResult("fk", mech, tuple(float(v) for v in u), tuple(float(v) for v in w), max_mode,
                             tuple(sols), complete, msg, time.perf_counter() - t0, diag)
+
+
+def refine_fk(m: MechArrays, u: NDArray, w: NDArray, zrod: NDArray, pose: NDArray, max_mode: int,
+              diag: dict[str, Any] | None = None) -> list[Solution]:
+    """Newton-refine FK candidates (unknowns: rod charts and pose) and build solutions."""
+    def f(x: NDArray) -> NDArray:
+        return residual(m, x[:, :6], x[:, 6:], np.broadcast_to(u, (len(x), 3)), w)
+
+    x0 = np.concatenate([np.atleast_2d(zrod), np.atleast_2d(pose)], axis=1)
+    cap = np.array([0.2, 0.5] * 3 + [0.1 * m.L_ref, 0.1 * m.L_ref, 0.3])
+    res = batch_newton(f, x0, tol=1e-13, project=project_unknowns, max_step=cap, merge_after=4, merge_tol=1e-6)
+    good = res.residual <= RESIDUAL_TOL
+    if diag is not None:
+        diag["converged"] = int(np.count_nonzero(good))
+    x = res.z[good]
+    pose = x[:, 6:].copy()
+    pose[:, 2] = (pose[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    key_scale = np.array([m.L_ref if k != REVOLUTE else 1.0 for k in m.kind])
+    return finish_solutions(m, x[:, :6], res.residual[good], pose, np.broadcast_to(u, (len(x), 3)),
+                            max_mode, key_scale)
 
 
 def _assembly_obstruction(m: MechArrays, u: NDArray) -> str:
