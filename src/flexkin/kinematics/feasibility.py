@@ -66,8 +66,9 @@ Rods, legs and inputs are numbered from 1 in reasons and in the index tuples of
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -76,13 +77,13 @@ __all__ = [
     "Feasibility",
     "check_feasibility",
     "check_solutions",
+    "inputs_out_of_range",
     "point_segment_distances",
-    "segment_distances",
     "polyline_crossings",
-    "self_crossings",
     "polyline_platform",
     "rod_max_curvature",
-    "inputs_out_of_range",
+    "segment_distances",
+    "self_crossings",
 ]
 
 #: default exempt length near a rod's own pin, as a fraction of the shortest platform edge
@@ -523,8 +524,8 @@ def inputs_out_of_range(mechanism: Any, inputs: Sequence[float]) -> list[tuple[i
         if leg.range is None or bool(leg.in_range(u)):
             continue
         lo, hi = (leg.to_display(v) for v in leg.range)
-        out.append((i, f"input {i} = {_fmt(leg.to_display(u))} {leg.input_unit} "
-                        f"outside range [{_fmt(lo)}, {_fmt(hi)}]"))
+        msg = f"input {i} = {_fmt(leg.to_display(u))} {leg.input_unit} outside range [{_fmt(lo)}, {_fmt(hi)}]"
+        out.append((i, msg))
     return out
 
 
@@ -654,7 +655,7 @@ def check_feasibility(
         if s is None:
             if limit is not None:
                 skipped.append(f"strain: rod {i + 1} has no radius")
-        elif limit is not None and s > 1.01*limit:
+        elif limit is not None and s > limit:
             reasons.append(f"strain {_fmt(s)} > {_fmt(limit)} on rod {i + 1}")
 
     # 5. actuator strokes
