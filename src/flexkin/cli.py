@@ -107,9 +107,63 @@ def _build_parser() -> argparse.ArgumentParser:
         k.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode of any rod (default 2)")
         k.add_argument("--json", action="store_true", help="print the SPEC §4 JSON object")
         k.add_argument("--plot", metavar="FILE", help="figure with one panel per solution")
+        k.add_argument("--stable-only", action="store_true", help="list only the stable equilibria")
+        k.add_argument("--feasible-only", action="store_true",
+                       help="list only the feasible equilibria (no collision, strain and inputs within limits)")
         if name == "ik":
             k.add_argument("--curves", metavar="FILE", help="figure of the geometric-condition curves (Fig. 7)")
+    pa = sub.add_parser("path", help="follow one IK solution along a straight path of poses (singularities, stability)")
+    pa.add_argument("mechanism", help="mechanism file (TOML, SPEC §3)")
+    pa.add_argument("--from", dest="start", nargs=3, type=_finite("--from"), metavar=("X", "Y", "THETA"), required=True,
+                    help="start pose: m, m, deg")
+    pa.add_argument("--to", dest="end", nargs=3, type=_finite("--to"), metavar=("X", "Y", "THETA"), required=True,
+                    help="end pose: m, m, deg")
+    pa.add_argument("--steps", type=_count("--steps"), default=50, help="number of path intervals (default 50)")
+    pa.add_argument("--solution", type=_count("--solution", 0), default=None,
+                    help="index (from 0, as listed by 'flexkin ik' minus one) of the IK solution at the start "
+                         "pose to follow (default: the first stable one)")
+    pa.add_argument("--load", nargs=3, type=_finite("--load"), metavar=("FX", "FY", "MZ"),
+                    help="load wrench at P [N, N, N m] (default: the file's [load] or zero)")
+    pa.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode for the start IK (default 2)")
+    pa.add_argument("--json", action="store_true", help="print the JSON result")
+    pa.add_argument("--plot", metavar="FILE", help="inputs, Jacobian determinants and stability margin vs t")
     return p
+
+
+def _count(name: str, lo: int = 1):
+    def conv(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name}: expected an integer, got {text!r}") from None
+        if not lo <= v <= 100000:
+            raise argparse.ArgumentTypeError(f"{name}: must be between {lo} and 100000, got {v}")
+        return v
+
+    return conv
+
+
+def _cmd_path(a) -> int:
+    from .kinematics.path import follow_path
+
+    mech = _load_mech(a.mechanism)
+    start = (a.start[0], a.start[1], math.radians(a.start[2]))
+    end = (a.end[0], a.end[1], math.radians(a.end[2]))
+    res = follow_path(mech, start, end, steps=a.steps, load=a.load, solution=a.solution, max_mode=a.max_mode)
+    if a.json:
+        print(_dump(res.to_dict()))
+    else:
+        print(f"{mech.name}: path from ({a.start[0]:g} m, {a.start[1]:g} m, {a.start[2]:g} deg) to "
+              f"({a.end[0]:g} m, {a.end[1]:g} m, {a.end[2]:g} deg), {a.steps} steps, {len(res.t)} samples reached "
+              f"in {res.elapsed:.2f} s")
+        if len(res.t):
+            print(res.table())
+    if res.message:
+        print(f"flexkin path: {res.message}", file=sys.stderr)
+    if a.plot and len(res.t):
+        res.plot(a.plot)
+        print(f"figure written to {a.plot}", file=sys.stderr)
+    return 0
 
 
 def _version() -> str:
@@ -219,6 +273,8 @@ def _cmd_kinematics(a) -> int:
         res = fk(mech, u, load=a.load, max_mode=a.max_mode)
         units = ["deg" if leg.actuation == "revolute" else "m" for leg in mech.legs]
         what = "forward kinematics at inputs (" + ", ".join(f"{v:g} {un}" for v, un in zip(a.inputs, units)) + ")"
+    if a.stable_only or a.feasible_only:
+        res = res.select(stable_only=a.stable_only, feasible_only=a.feasible_only)
     if a.json:
         print(_dump(res.to_dict()))
     else:
@@ -249,7 +305,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _build_parser()
     try:
         a = parser.parse_args(argv)
-        handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics, "fk": _cmd_kinematics}[a.command]
+        handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics, "fk": _cmd_kinematics,
+                   "path": _cmd_path}[a.command]
         return handler(a)
     except CLIError as e:
         print(str(e), file=sys.stderr)

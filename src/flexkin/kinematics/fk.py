@@ -229,7 +229,8 @@ def fit_pose(m: MechArrays, tips: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.concatenate([P, th[:, None]], axis=1)
 
 
-def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *, stride: int = 4) -> KinematicsResult:
+def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *, stride: int = 4,
+       stable_only: bool = False) -> KinematicsResult:
     """All equilibrium poses of ``mech`` for actuator ``inputs`` under ``load`` (paper §5).
 
     Parameters
@@ -244,6 +245,8 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         Largest d-mode of any rod (default 2).
     stride : int
         Coarsening of the atlas cells used by the search (1 = finest, slowest).
+    stable_only : bool
+        Keep only the stable equilibria (default: all, stable and unstable).
 
     Returns
     -------
@@ -272,8 +275,9 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     if not complete:
         msg = ("search budget exhausted near a singular configuration: the solution list may be incomplete"
                + ("" if sols else "; " + msg))
-    return KinematicsResult("fk", mech, tuple(float(v) for v in u), tuple(float(v) for v in w), max_mode,
-                            tuple(sols), complete, msg, time.perf_counter() - t0, diag)
+    res = KinematicsResult("fk", mech, tuple(float(v) for v in u), tuple(float(v) for v in w), max_mode,
+                           tuple(sols), complete, msg, time.perf_counter() - t0, diag)
+    return res.select(stable_only=True) if stable_only else res
 
 
 def refine_fk(m: MechArrays, u: NDArray, w: NDArray, zrod: NDArray, pose: NDArray, max_mode: int,

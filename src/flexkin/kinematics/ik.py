@@ -107,7 +107,8 @@ def finish_solutions(m: MechArrays, z: NDArray, res_norm: NDArray, pose: NDArray
     return sols
 
 
-def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2) -> KinematicsResult:
+def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *,
+       stable_only: bool = False) -> KinematicsResult:
     """All equilibria of ``mech`` at platform ``pose`` under ``load`` (paper §4).
 
     Parameters
@@ -119,6 +120,8 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2) 
         Load wrench on the platform at P; defaults to the mechanism file's ``[load]``.
     max_mode : int
         Largest d-mode of any rod (default 2, i.e. the 8 combinations of modes 1–2).
+    stable_only : bool
+        Keep only the stable equilibria (default: all, stable and unstable).
 
     Returns
     -------
@@ -168,8 +171,9 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2) 
     # ---- step 3: Newton on the full equations ------------------------------------------
     sols = refine_ik(m, pose, w, zrod, inputs, max_mode, diag)
     msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
-    return KinematicsResult("ik", mech, tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode,
-                            tuple(sols), complete, msg, time.perf_counter() - t0, diag, curves)
+    res = KinematicsResult("ik", mech, tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode,
+                           tuple(sols), complete, msg, time.perf_counter() - t0, diag, curves)
+    return res.select(stable_only=True) if stable_only else res
 
 
 def refine_ik(m: MechArrays, pose: NDArray, w: NDArray, zrod: NDArray, inputs: NDArray, max_mode: int,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -104,6 +105,7 @@ class KinematicsResult:
     elapsed: float = 0.0
     diagnostics: dict[str, Any] = field(default_factory=dict, repr=False)
     curves: Any = field(default=None, repr=False)
+    _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     def __len__(self) -> int:
         return len(self.solutions)
@@ -123,8 +125,33 @@ class KinematicsResult:
             out[s.mode_label] = out.get(s.mode_label, 0) + 1
         return out
 
+    def feasibility(self) -> tuple[Any, ...]:
+        """Feasibility of every solution (:func:`~flexkin.kinematics.feasibility.check_feasibility`:
+        collisions, self-intersection, bending strain, input ranges), computed once."""
+        if "feasibility" not in self._cache:
+            from .feasibility import check_solutions
+
+            self._cache["feasibility"] = check_solutions(self.mechanism, self.solutions)
+        return self._cache["feasibility"]
+
+    def select(self, stable_only: bool = False, feasible_only: bool = False) -> "KinematicsResult":
+        """A copy keeping only the stable and/or feasible solutions (order preserved)."""
+        keep = [True] * len(self.solutions)
+        if stable_only:
+            keep = [k and bool(s.stable) for k, s in zip(keep, self.solutions)]
+        if feasible_only:
+            keep = [k and f.feasible for k, f in zip(keep, self.feasibility())]
+        sols = tuple(s for k, s in zip(keep, self.solutions) if k)
+        out = dataclasses.replace(self, solutions=sols, _cache={})
+        if "feasibility" in self._cache:
+            out._cache["feasibility"] = tuple(f for k, f in zip(keep, self._cache["feasibility"]) if k)
+        if not sols and self.solutions:
+            what = " and ".join(w for w, on in (("stable", stable_only), ("feasible", feasible_only)) if on)
+            out = dataclasses.replace(out, message=f"none of the {len(self.solutions)} equilibria is {what}")
+        return out
+
     def to_dict(self) -> dict[str, Any]:
-        """The SPEC §4 JSON object."""
+        """The SPEC §4 JSON object (with each solution's ``feasible`` verdict and reasons)."""
         d: dict[str, Any] = {
             "problem": self.problem,
             "mechanism": self.mechanism.name,
@@ -138,7 +165,13 @@ class KinematicsResult:
                            for u, k in zip(self.given, self.kinds)]
         d["complete"] = self.complete
         d["message"] = self.message
-        d["solutions"] = [s.to_dict(self.kinds) for s in self.solutions]
+        sols = []
+        for s, f in zip(self.solutions, self.feasibility()):
+            e = s.to_dict(self.kinds)
+            e["feasible"] = f.feasible
+            e["feasibility"] = f.to_dict()
+            sols.append(e)
+        d["solutions"] = sols
         return d
 
     def table(self) -> str:

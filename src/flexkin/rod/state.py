@@ -35,7 +35,7 @@ def project_chart(v: NDArray[np.float64], phis: NDArray[np.float64]) -> tuple[ND
     over = phis > HALF_PI - 1e-12
     if np.any(over):
         phis[over] = np.minimum(np.pi - phis[over], HALF_PI - 1e-12)
-        a = np.arctan(np.sinh(v[over]))  # Gudermannian: ku = sin(a)
+        a = np.arctan(np.sinh(np.clip(v[over], -700.0, 700.0)))  # Gudermannian: ku = sin(a)
         a = np.where(a >= 0, a - HALF_PI, a + HALF_PI)
         v[over] = np.arcsinh(np.tan(a))
     np.clip(v, -_V_MAX, _V_MAX, out=v)

@@ -1,0 +1,115 @@
+"""Continuation of IK solutions in the pose (paper §6): predictor–corrector on the one system.
+
+One step moves ``n`` solutions at once from poses ``x0`` to poses ``x1``:
+
+* **predictor**: the tangent of the solution branch from the implicit-function theorem,
+  ``d(z, rho) = -A_IK^-1 G_x dx`` (:mod:`flexkin.kinematics.jacobian`);
+* **corrector**: chord Newton with the predictor's matrix ``A_IK`` (one residual per
+  iteration), then full Newton if the chord iteration is slow;
+* **acceptance**: residual <= :data:`~flexkin.kinematics.ik.RESIDUAL_TOL` and a corrector
+  displacement small against the predicted one (so that a step never jumps to another
+  branch).  A step that fails is an answer, not an error: near an IK singularity (a fold of
+  the branch, typically the workspace boundary) the steps fail however small they are.
+
+d-mode changes of a rod need no special treatment: every d-mode is one strip of the unified
+rod chart, so a rod changes mode continuously.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .ik import RESIDUAL_TOL
+from .jacobian import system_derivatives
+from .system import REVOLUTE, MechArrays, project_zrod, residual
+
+__all__ = ["continue_ik", "unknown_scale"]
+
+
+def unknown_scale(m: MechArrays) -> NDArray[np.float64]:
+    """Scale of the IK unknowns ``(zrod, inputs)`` used for step norms."""
+    return np.concatenate([np.ones(6), [1.0 if k == REVOLUTE else m.L_ref for k in m.kind]])
+
+
+def _solve(A: NDArray, b: NDArray) -> tuple[NDArray, NDArray]:
+    out = np.zeros_like(b)
+    ok = np.isfinite(A).all(axis=(1, 2)) & np.isfinite(b).all(axis=1)
+    if np.any(ok):
+        ok_idx = np.flatnonzero(ok)
+        c = np.linalg.cond(A[ok_idx])
+        good = c < 1e13
+        ok[ok_idx[~good]] = False
+        if np.any(good):
+            out[ok_idx[good]] = np.linalg.solve(A[ok_idx[good]], b[ok_idx[good]][..., None])[..., 0]
+    return out, ok
+
+
+def _A_ik(m: MechArrays, x: NDArray, pose: NDArray) -> tuple[NDArray, NDArray]:
+    """``A_IK`` in the raw unknowns (zrod, inputs) and ``G_x`` in raw pose units."""
+    Gz, Gx, Gu = system_derivatives(m, x[:, :6], pose, x[:, 6:])
+    su = unknown_scale(m)[6:]
+    sx = np.array([m.L_ref, m.L_ref, 1.0])
+    return np.concatenate([Gz, Gu / su[None, None, :]], axis=2), Gx / sx[None, None, :]
+
+
+def continue_ik(m: MechArrays, x: NDArray, pose0: NDArray, pose1: NDArray, load: NDArray,
+                chord_iter: int = 6, newton_iter: int = 5) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Move IK solutions ``x = (zrod, inputs)`` (n, 9) from ``pose0`` to ``pose1`` (n, 3).
+
+    Returns the new unknowns and a success flag per solution (failed rows are returned
+    unchanged).
+    """
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    pose0, pose1 = np.atleast_2d(pose0), np.atleast_2d(pose1)
+    n = len(x)
+    scale = unknown_scale(m)
+    A, Gx = _A_ik(m, x, pose0)
+    dx_pred, ok = _solve(A, -np.einsum("nij,nj->ni", Gx, pose1 - pose0))
+    pred = x + dx_pred
+    pred[:, :6] = project_zrod(pred[:, :6])
+    y = pred.copy()
+
+    def res(y_, p_):
+        return residual(m, y_[:, :6], p_, y_[:, 6:], load)
+
+    r = res(y, pose1)
+    norm = np.max(np.abs(r), axis=1)
+    norm[~np.isfinite(norm)] = np.inf
+    chord = ok.copy()
+    for _ in range(chord_iter):
+        act = chord & (norm > RESIDUAL_TOL * 1e-2)
+        if not np.any(act):
+            break
+        d, good = _solve(A[act], -r[act])
+        ya = y[act] + d
+        ya[:, :6] = project_zrod(ya[:, :6])
+        ra = res(ya, pose1[act])
+        na = np.max(np.abs(ra), axis=1)
+        na[~np.isfinite(na)] = np.inf
+        better = good & (na < norm[act])
+        idx = np.flatnonzero(act)[better]
+        y[idx], r[idx], norm[idx] = ya[better], ra[better], na[better]
+        chord[np.flatnonzero(act)[~better]] = False
+    for _ in range(newton_iter):  # full Newton for the slow ones
+        act = ok & (norm > RESIDUAL_TOL * 1e-2)
+        if not np.any(act):
+            break
+        Aa, _ = _A_ik(m, y[act], pose1[act])
+        d, good = _solve(Aa, -r[act])
+        ya = y[act] + d
+        ya[:, :6] = project_zrod(ya[:, :6])
+        ra = res(ya, pose1[act])
+        na = np.max(np.abs(ra), axis=1)
+        na[~np.isfinite(na)] = np.inf
+        better = good & (na < norm[act])
+        idx = np.flatnonzero(act)[better]
+        y[idx], r[idx], norm[idx] = ya[better], ra[better], na[better]
+        if np.all(~better):
+            break
+    # accept: converged, and the corrector stayed close to the prediction (same branch)
+    pred_len = np.max(np.abs(dx_pred) / scale, axis=1)
+    corr_len = np.max(np.abs(y - pred) / scale, axis=1)
+    success = ok & (norm <= RESIDUAL_TOL) & (corr_len <= 0.5 * pred_len + 1e-6)
+    out = np.where(success[:, None], y, x)
+    return out, success
