@@ -95,8 +95,8 @@ def test_fk_singularity_where_the_reduced_hessian_is_singular(examples_dir):
 
 
 def _rod_counts(m, s):
-    from flexkin.kinematics.stability import rod_conjugate_points
-    return rod_conjugate_points(np.array(s.zrod[0::2]), np.array(s.zrod[1::2]))[0]
+    from flexkin.kinematics.stability import rod_pinned_index
+    return rod_pinned_index(np.array(s.zrod[0::2]), np.array(s.zrod[1::2]))
 
 
 def test_jacobian_in_json(examples_dir):

@@ -6,36 +6,30 @@ The total potential of the mechanism is
 
 on the configurations with every rod clamped (actuators locked) and every rod tip pinned to
 its platform point ``B_i = P + Rot(theta_P) b_i``.  An equilibrium is stable when the second
-variation of V is positive definite on the admissible perturbations.  The second variation
-is split exactly (Schur complement; Haynsworth inertia additivity) into
+variation of V is positive definite on the admissible perturbations.  Its index (number of
+unstable directions) is computed exactly, by inertia additivity (Haynsworth) twice:
 
-1. **each rod with its tip pinned** (the platform held still): Jacobi's conjugate-point test
-   for the isoperimetric problem (Manning, Rogers & Maddocks 1998).  The number of
-   conjugate points on (0, L) is the number of unstable directions of that rod;
+1. **each rod with its tip pinned** (the platform held still).  Let ``Q`` be the rod's second
+   variation with its tip force ``n`` treated as a dead load,
+   ``Q[eta] = int EI eta'^2 + (n . t) eta^2 ds`` on ``eta(0) = 0``, and ``C`` the map to the
+   tip displacement.  The bordered matrix ``[[Q, C^T], [C, 0]]`` gives
+   ``index(Q on ker C) = index(Q) - neg(C Q^-1 C^T)``, where ``index(Q)`` follows from
+   Sturm's oscillation theorem (Pruefer angle of the Jacobi field ``u'' = (n . t) u``,
+   :func:`free_index`) and ``C Q^-1 C^T = dp/dn`` is the rod's tip compliance along its
+   family of equilibria, from the closed form (:func:`rod_compliance`).
 2. **the platform**, moving the rod tips: the reduced Hessian of
    ``V(q) = sum_i U_i(p_i(q)) - F.P - M theta`` over the pose ``q``, where ``U_i(p)`` is the
    rod's equilibrium energy with its tip at ``p``, ``grad U_i = n_i`` (the force on the tip)
-   and ``hess U_i = K_i = dn_i/dp_i`` (the rod's tip stiffness, from the closed form):
+   and ``hess U_i = K_i = dn_i/dp_i`` (the tip stiffness):
 
        H = sum_i J_i^T K_i J_i  -  diag(0, 0, sum_i n_i . (B_i - P)),   J_i = [I, perp(B_i - P)].
 
-The Morse index (number of unstable directions) of the equilibrium is the sum of the rods'
-conjugate-point counts and the number of negative eigenvalues of H; the equilibrium is
-stable when the index is 0.  The same Jacobi test, with the tip free under a dead load or
-sliding on a line, gives the classical cantilever and column results (:func:`rod_stability`).
-
-Jacobi fields of a unit rod (``EI = L = 1``, local clamp frame), linearising
-``theta' = m``, ``m' = n_x sin(theta) - n_y cos(theta)``, ``r' = (cos theta, sin theta)``:
-
-    dtheta' = dm
-    dm'     = dn_x sin(theta) - dn_y cos(theta) + (n_x cos(theta) + n_y sin(theta)) dtheta
-    dx'     = -sin(theta) dtheta,     dy' = cos(theta) dtheta,
-
-with ``dtheta(0) = 0`` (clamp), ``dm(0)`` free and ``dn = G mu`` in the span of the
-constrained tip directions ``G`` (2 columns for a pinned tip, the slider's normal for a
-slider, none for a free tip under a dead load).  A conjugate point is an ``s`` where a
-non-trivial field has ``dm(s) = 0`` (moment-free end) and ``G^T dr(s) = 0``, i.e. a zero of
-``D(s) = det [dm(s); G^T dr(s)]`` over the ``1 + c`` fields.
+The Morse index of the equilibrium is the sum of the rods' pinned indices and the number of
+negative eigenvalues of H; the equilibrium is stable when it is 0.  The same steps give the
+classical cantilever (free tip, dead load) and column (tip on a slider) results
+(:func:`rod_stability`).  Counting the zeros of ``det [dm; dr]`` over the Jacobi fields
+(conjugate points) is *not* enough for these isoperimetric problems: zeros can be crossed in
+either direction (Manning, Rogers & Maddocks 1998), which the inertia formula handles.
 """
 
 from __future__ import annotations
@@ -50,192 +44,112 @@ from ..rod.closed_form import tangent_angles, tip_chart
 from ..rod.state import RodState
 from .system import MechArrays, clamp_arrays, platform_points, rod_world
 
-__all__ = ["jacobi_conjugate_points", "rod_tip_stiffness", "reduced_hessian", "mechanism_stability",
+__all__ = ["free_index", "rod_pinned_index", "rod_compliance", "rod_tip_stiffness", "reduced_hessian",
+           "mechanism_stability",
            "rod_stability", "RodStability", "JACOBI_STEPS"]
 
-#: RK4 steps along a unit rod for the Jacobi fields (theta sampled at twice this rate)
+#: RK4 steps along a unit rod for the Jacobi field (theta sampled at twice this rate)
 JACOBI_STEPS = 256
-#: the reference sign of D(s) is taken at s = S_REF (no conjugate point can be closer to the
-#: clamp than ~pi / sqrt(R L^2/EI), i.e. 0.08 L at the largest forces in scope)
-S_REF = 0.02
 
 
 @njit(cache=True)
-def _rhs(y: NDArray, th: float, fx: float, fy: float, G: NDArray, out: NDArray) -> None:
-    """Jacobi equations (module docstring) for the fields ``y`` (4 + c, d), in place."""
-    s, c = np.sin(th), np.cos(th)
-    q = fx * c + fy * s
-    nc = G.shape[1]
-    for j in range(y.shape[1]):
-        dnx = 0.0
-        dny = 0.0
-        for a in range(nc):
-            dnx += G[0, a] * y[4 + a, j]
-            dny += G[1, a] * y[4 + a, j]
-        out[0, j] = y[1, j]
-        out[1, j] = dnx * s - dny * c + q * y[0, j]
-        out[2, j] = -s * y[0, j]
-        out[3, j] = c * y[0, j]
-        for a in range(nc):
-            out[4 + a, j] = 0.0
-
-
-@njit(cache=True)
-def _det_small(C: NDArray) -> float:
-    d = C.shape[0]
-    if d == 1:
-        return C[0, 0]
-    if d == 2:
-        return C[0, 0] * C[1, 1] - C[0, 1] * C[1, 0]
-    return (C[0, 0] * (C[1, 1] * C[2, 2] - C[1, 2] * C[2, 1])
-            - C[0, 1] * (C[1, 0] * C[2, 2] - C[1, 2] * C[2, 0])
-            + C[0, 2] * (C[1, 0] * C[2, 1] - C[1, 1] * C[2, 0]))
-
-
-@njit(cache=True)
-def _jacobi_kernel(theta: NDArray, force: NDArray, G: NDArray, j_ref: int,
-                   count: NDArray, first: NDArray) -> None:
+def _pruefer_kernel_h(theta: NDArray, force: NDArray, h: float, out_angle: NDArray) -> None:
     n, ns = theta.shape
     N = (ns - 1) // 2
-    h = 1.0 / N
-    c = G.shape[2]
-    d = 1 + c
-    dim = 4 + c
-    y = np.zeros((dim, d))
-    k1 = np.zeros((dim, d))
-    k2 = np.zeros((dim, d))
-    k3 = np.zeros((dim, d))
-    k4 = np.zeros((dim, d))
-    tmp = np.zeros((dim, d))
-    C = np.zeros((d, d))
     for r in range(n):
-        y[:, :] = 0.0
-        y[1, 0] = 1.0                      # field 0: base moment
-        for a in range(c):
-            y[4 + a, 1 + a] = 1.0          # fields 1..c: constraint reactions
         fx, fy = force[r, 0], force[r, 1]
-        Gr = G[r]
-        acc = 1.0
-        prev = 0.0
-        count[r] = 0
-        first[r] = np.inf
+        u, du, ang = 0.0, 1.0, 0.0
         for j in range(N):
-            t0, tm, t1 = theta[r, 2 * j], theta[r, 2 * j + 1], theta[r, 2 * j + 2]
-            _rhs(y, t0, fx, fy, Gr, k1)
-            tmp[:, :] = y + 0.5 * h * k1
-            _rhs(tmp, tm, fx, fy, Gr, k2)
-            tmp[:, :] = y + 0.5 * h * k2
-            _rhs(tmp, tm, fx, fy, Gr, k3)
-            tmp[:, :] = y + h * k3
-            _rhs(tmp, t1, fx, fy, Gr, k4)
-            y += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-            # modified Gram-Schmidt: the fields stay a well-conditioned basis; the product of
-            # the pivots' signs (all positive here) keeps the sign of det(C Y) exact
-            for a in range(d):
-                for b in range(a):
-                    proj = 0.0
-                    for i in range(dim):
-                        proj += y[i, a] * y[i, b]
-                    for i in range(dim):
-                        y[i, a] -= proj * y[i, b]
-                nrm = 0.0
-                for i in range(dim):
-                    nrm += y[i, a] * y[i, a]
-                nrm = np.sqrt(nrm)
-                for i in range(dim):
-                    y[i, a] /= nrm
-            for b in range(d):
-                C[0, b] = y[1, b]
-                for a in range(c):
-                    C[1 + a, b] = Gr[0, a] * y[2, b] + Gr[1, a] * y[3, b]
-            D = _det_small(C) * acc
-            if j + 1 > j_ref and prev != 0.0 and (D > 0.0) != (prev > 0.0):
-                s_cross = h * (j + prev / (prev - D))
-                if s_cross < first[r]:
-                    first[r] = s_cross
-                count[r] += 1
-            if j + 1 >= j_ref:
-                prev = D
+            q0 = fx * np.cos(theta[r, 2 * j]) + fy * np.sin(theta[r, 2 * j])
+            qm = fx * np.cos(theta[r, 2 * j + 1]) + fy * np.sin(theta[r, 2 * j + 1])
+            q1 = fx * np.cos(theta[r, 2 * j + 2]) + fy * np.sin(theta[r, 2 * j + 2])
+            k1u, k1d = du, q0 * u
+            k2u, k2d = du + 0.5 * h * k1d, qm * (u + 0.5 * h * k1u)
+            k3u, k3d = du + 0.5 * h * k2d, qm * (u + 0.5 * h * k2u)
+            k4u, k4d = du + h * k3d, q1 * (u + h * k3u)
+            u += h / 6.0 * (k1u + 2.0 * k2u + 2.0 * k3u + k4u)
+            du += h / 6.0 * (k1d + 2.0 * k2d + 2.0 * k3d + k4d)
+            nrm = np.sqrt(u * u + du * du)
+            u /= nrm
+            du /= nrm
+            a = np.arctan2(u, du)
+            a += 2.0 * np.pi * np.round((ang - a) / (2.0 * np.pi))
+            ang = a
+        out_angle[r] = ang
 
 
-def jacobi_conjugate_points(theta: NDArray[np.float64], force: NDArray[np.float64], G: NDArray[np.float64]
-                            ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Conjugate points of unit rods (Jacobi test).
+def free_index(theta: NDArray[np.float64], force: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Index of the second variation of clamped unit rods under their tip force as a dead load.
 
-    The fields are integrated by RK4 on the grid of ``theta`` (midpoints at odd indices) and
-    re-orthonormalised after every step (Gram-Schmidt with positive pivots, which leaves the
-    sign of ``D(s)`` unchanged); sign changes of ``D`` after ``s = S_REF`` are counted.
+    ``Q[eta] = int eta'^2 + q eta^2 ds``, ``q = n . t`` (``eta(0) = 0``, natural end): by
+    Sturm's oscillation theorem in Pruefer form (``u'' = q u``, ``u(0) = 0``, ``u'(0) = 1``,
+    ``u = r sin(a)``, ``u' = r cos(a)``), the number of negative eigenvalues is the number of
+    ``k >= 0`` with ``a(1) > pi/2 + k pi``.  (Counting the zeros of ``u'`` instead would be
+    wrong: where ``q > 0`` they are crossed backwards.)
 
     Parameters
     ----------
     theta : ndarray, shape (n, 2 N + 1)
-        Tangent angle at ``s = linspace(0, 1, 2 N + 1)`` (local frame, ``theta[:, 0] = 0``).
+        Tangent angle at ``s = linspace(0, 1, 2 N + 1)``.
     force : ndarray, shape (n, 2)
-        Force on the tip (= internal force), unit rod (``EI = L = 1``), local frame.
-    G : ndarray, shape (n, 2, c)
-        Constrained tip directions (orthonormal columns), ``c`` in {0, 1, 2}.
-
-    Returns
-    -------
-    count : ndarray of int, shape (n,)
-        Number of conjugate points in ``(0, 1)`` (the rod's Morse index).
-    first : ndarray, shape (n,)
-        Arc length of the first conjugate point (``inf`` if none).
+        Tip force (unit rod, same frame as ``theta``).
     """
     theta = np.ascontiguousarray(theta, dtype=float)
     f = np.ascontiguousarray(force, dtype=float)
-    G = np.ascontiguousarray(G, dtype=float)
-    n = theta.shape[0]
-    N = (theta.shape[1] - 1) // 2
-    count = np.zeros(n, dtype=np.int64)
-    first = np.full(n, np.inf)
-    if n:
-        _jacobi_kernel(theta, f, G, max(1, int(np.ceil(S_REF * N))), count, first)
-    return count, first
+    ang = np.zeros(theta.shape[0])
+    if theta.shape[0]:
+        _pruefer_kernel_h(theta, f, 1.0 / ((theta.shape[1] - 1) // 2), ang)
+    return np.maximum(0, np.floor((ang - 0.5 * np.pi) / np.pi).astype(np.int64) + 1)
+
+
+def rod_compliance(v: ArrayLike, phis: ArrayLike, step: float = 1e-6) -> NDArray[np.float64]:
+    """Tip compliance ``dp/dn`` of unit rods with zero tip moment, local frame, (n, 2, 2).
+
+    The inverse of the tip stiffness (:func:`rod_tip_stiffness`), but finite also for a
+    straight rod (whose axial compliance is 0).
+    """
+    Jp, Jf = _chart_jacobians(v, phis, step)
+    return Jp @ np.linalg.inv(Jf)
+
+
+def _chart_jacobians(v: ArrayLike, phis: ArrayLike, step: float) -> tuple[NDArray, NDArray]:
+    v = np.atleast_1d(np.asarray(v, dtype=float))
+    phis = np.atleast_1d(np.asarray(phis, dtype=float))
+    cols_p, cols_f = [], []
+    for dv, dp in ((step, 0.0), (0.0, step)):
+        a, b = tip_chart(v + dv, phis + dp), tip_chart(v - dv, phis - dp)
+        cols_p.append(np.stack([a.x - b.x, a.y - b.y], -1) / (2 * step))
+        cols_f.append(np.stack([a.fx - b.fx, a.fy - b.fy], -1) / (2 * step))
+    return np.stack(cols_p, -1), np.stack(cols_f, -1)
+
+
+def _neg_count(A: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Number of clearly negative eigenvalues of symmetric parts (zeros are not counted)."""
+    ev = np.linalg.eigvalsh(0.5 * (A + np.swapaxes(A, -1, -2)))
+    tol = 1e-9 * np.max(np.abs(ev), axis=-1, keepdims=True)
+    return np.sum(ev < -tol, axis=-1)
 
 
 def _theta_nodes(v: NDArray, phis: NDArray, steps: int) -> NDArray[np.float64]:
     return tangent_angles(v, phis, np.linspace(0.0, 1.0, 2 * steps + 1))
 
 
-def _pinned_G(theta: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Constrained directions of a pinned tip: both axes, unless the rod is (numerically)
-    straight, when the axial constraint is vacuous to first order (inextensible rod) and
-    only the lateral one is kept (the rod then behaves like a tip on an axial slider)."""
-    n = theta.shape[0]
-    w = np.full(theta.shape[1], 1.0)
-    w[0] = w[-1] = 0.5
-    w /= w.sum()
-    s, c = np.sin(theta), np.cos(theta)
-    gram = np.stack([np.stack([(w * s * s).sum(1), -(w * s * c).sum(1)], -1),
-                     np.stack([-(w * s * c).sum(1), (w * c * c).sum(1)], -1)], -2)
-    ev, vec = np.linalg.eigh(gram)
-    degenerate = ev[:, 0] < 1e-14 * ev[:, 1]
-    G = np.broadcast_to(np.eye(2), (n, 2, 2)).copy()
-    return G, degenerate, vec[:, :, 1:2]
+def rod_pinned_index(v: ArrayLike, phis: ArrayLike, steps: int = JACOBI_STEPS) -> NDArray[np.int64]:
+    """Index (unstable directions) of clamped unit rods with their tip pinned (chart coordinates).
 
-
-def rod_conjugate_points(v: ArrayLike, phis: ArrayLike, steps: int = JACOBI_STEPS
-                         ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Conjugate points of clamped rods with their tip pinned (chart coordinates).
-
-    Returns the count on (0, L) and the first one as a fraction of L (``inf`` if none).
+    With ``Q`` the second variation under the tip force as a dead load and ``C`` the map to
+    the tip displacement, the bordered-matrix inertia (Haynsworth) gives
+    ``index(Q on ker C) = index(Q) - neg(C Q^-1 C^T)``, and ``C Q^-1 C^T`` is the rod's tip
+    compliance ``dp/dn`` along its equilibrium family (:func:`rod_compliance`).  A zero
+    eigenvalue of the compliance (a straight rod: its axial constraint is vacuous to first
+    order) is not counted.
     """
     v = np.atleast_1d(np.asarray(v, dtype=float))
     phis = np.atleast_1d(np.asarray(phis, dtype=float))
     theta = _theta_nodes(v, phis, steps)
     t = tip_chart(v, phis)
-    f = np.stack([t.fx, t.fy], -1)
-    G, degenerate, lateral = _pinned_G(theta)
-    count = np.zeros(len(v), dtype=np.int64)
-    first = np.full(len(v), np.inf)
-    if np.any(~degenerate):
-        ok = ~degenerate
-        count[ok], first[ok] = jacobi_conjugate_points(theta[ok], f[ok], G[ok])
-    if np.any(degenerate):
-        count[degenerate], first[degenerate] = jacobi_conjugate_points(theta[degenerate], f[degenerate],
-                                                                       lateral[degenerate])
-    return count, first
+    free = free_index(theta, np.stack([t.fx, t.fy], -1))
+    return free - _neg_count(rod_compliance(v, phis))
 
 
 def rod_tip_stiffness(v: ArrayLike, phis: ArrayLike, step: float = 1e-6) -> NDArray[np.float64]:
@@ -290,11 +204,10 @@ def reduced_hessian(m: MechArrays, zrod: NDArray, pose: NDArray, inputs: NDArray
 class StabilityArrays:
     """Stability of ``n`` equilibria (arrays; see :func:`mechanism_stability`)."""
 
-    stable: NDArray[np.bool_]        # (n,)
-    index: NDArray[np.int64]         # (n,) number of unstable directions (Morse index)
-    margin: NDArray[np.float64]      # (n,) see mechanism_stability
-    rod_conjugate: NDArray[np.int64]  # (n, 3) conjugate points of each rod with its tip pinned
-    rod_first: NDArray[np.float64]    # (n, 3) first conjugate point / L (inf if none)
+    stable: NDArray[np.bool_]         # (n,)
+    index: NDArray[np.int64]          # (n,) number of unstable directions (Morse index)
+    margin: NDArray[np.float64]       # (n,) see mechanism_stability
+    rod_index: NDArray[np.int64]      # (n, 3) index of each rod with its tip pinned
     hessian: NDArray[np.float64]      # (n, 3, 3) reduced Hessian (dimensionless)
 
 
@@ -313,16 +226,15 @@ def mechanism_stability(m: MechArrays, zrod: NDArray, pose: NDArray, inputs: NDA
     Returns
     -------
     StabilityArrays
-        ``stable`` iff no rod has a conjugate point and the reduced Hessian is positive
-        definite.  ``margin`` is the smallest eigenvalue of the dimensionless reduced Hessian
-        when every rod passes its own test; when a rod buckles on its own (pinned at both
-        ends), it is ``sigma/L - 1 < 0`` for the rod's first conjugate point ``sigma`` (the
-        rod would be stable if it were shorter than ``sigma``), so ``margin > 0`` iff stable.
+        ``index`` = sum of the rods' pinned indices + negative eigenvalues of the reduced
+        Hessian; ``stable`` iff ``index == 0``.  ``margin`` is the smallest eigenvalue of the
+        dimensionless reduced Hessian when every rod is stable with its tip pinned (it
+        crosses zero where the platform loses stability, at an FK singularity); when ``k``
+        rods buckle on their own it is ``-k``.  So ``margin > 0`` iff stable.
     """
     zrod = np.atleast_2d(np.asarray(zrod, dtype=float))
     n = len(zrod)
-    cnt, first = rod_conjugate_points(zrod[:, 0::2].ravel(), zrod[:, 1::2].ravel(), steps)
-    cnt, first = cnt.reshape(n, 3), first.reshape(n, 3)
+    cnt = rod_pinned_index(zrod[:, 0::2].ravel(), zrod[:, 1::2].ravel(), steps).reshape(n, 3)
     H = reduced_hessian(m, zrod, pose, inputs)
     H = 0.5 * (H + np.swapaxes(H, 1, 2))
     finite = np.all(np.isfinite(H), axis=(1, 2))
@@ -331,9 +243,9 @@ def mechanism_stability(m: MechArrays, zrod: NDArray, pose: NDArray, inputs: NDA
         ev[finite] = np.linalg.eigvalsh(H[finite])
     index = cnt.sum(1) + np.sum(ev < 0.0, axis=1)
     rods_ok = cnt.sum(1) == 0
-    margin = np.where(rods_ok, ev[:, 0], np.min(first, axis=1) - 1.0)
+    margin = np.where(rods_ok, ev[:, 0], -cnt.sum(1).astype(float))
     margin = np.where(np.isfinite(margin), margin, -1.0)
-    return StabilityArrays(index == 0, index.astype(np.int64), margin, cnt, first, H)
+    return StabilityArrays(index == 0, index.astype(np.int64), margin, cnt, H)
 
 
 # ---- a single rod: the classical cases -----------------------------------------------------------
@@ -347,16 +259,17 @@ class RodStability:
     ----------
     stable : bool
     index : int
-        Number of conjugate points on (0, L) = number of unstable directions.
-    first_conjugate : float
-        Arc length of the first conjugate point (m), ``inf`` if none on (0, L).
+        Number of unstable directions.
+    first_conjugate : float or None
+        For ``tip="free"``: arc length (m) where the Jacobi field first reaches its first
+        focal point (``u' = 0``, forward), ``inf`` if none on (0, L); ``None`` otherwise.
     tip : str
         ``"pinned"``, ``"slider"`` or ``"free"``.
     """
 
     stable: bool
     index: int
-    first_conjugate: float
+    first_conjugate: float | None
     tip: str
 
 
@@ -371,22 +284,57 @@ def rod_stability(rod: RodState, tip: str = "pinned", slider_angle: float | None
 
     The rod must be an equilibrium of that problem (zero tip moment, as every
     :class:`RodState` is; for ``"slider"`` and ``"free"`` the tip force must be the dead
-    load).  Jacobi's conjugate-point test, see the module docstring.
+    load).  Index of the free problem by Sturm–Pruefer (:func:`free_index`), then the
+    constrained ones by the bordered-matrix inertia with the tip compliance.
     """
     if tip not in ("pinned", "slider", "free"):
         raise ValueError(f"tip must be 'pinned', 'slider' or 'free', got {tip!r}")
-    theta = _theta_nodes(np.array([rod.v]), np.array([rod.phis]), steps)
+    if tip == "slider" and slider_angle is None:
+        raise ValueError("tip='slider' needs slider_angle (rad)")
+    v, ph = np.array([rod.v]), np.array([rod.phis])
+    theta = _theta_nodes(v, ph, steps)
     t = tip_chart(rod.v, rod.phis)
     f = np.array([[float(t.fx), float(t.fy)]])
-    if tip == "pinned":
-        G, degenerate, lateral = _pinned_G(theta)
-        G = lateral if degenerate[0] else G
-    elif tip == "slider":
-        if slider_angle is None:
-            raise ValueError("tip='slider' needs slider_angle (rad)")
-        a = float(slider_angle) - rod.clamp_angle  # local frame
-        G = np.array([[[-np.sin(a)], [np.cos(a)]]])
+    index = int(free_index(theta, f)[0])
+    first: float | None = None
+    if tip == "free":
+        first = _first_focal(theta[0], f[0]) * rod.length
     else:
-        G = np.zeros((1, 2, 0))
-    cnt, first = jacobi_conjugate_points(theta, f, G)
-    return RodStability(bool(cnt[0] == 0), int(cnt[0]), float(first[0] * rod.length), tip)
+        Cp = rod_compliance(v, ph)[0]
+        if tip == "slider":
+            a = float(slider_angle) - rod.clamp_angle  # local frame
+            g = np.array([-np.sin(a), np.cos(a)])
+            Cp = np.array([[g @ Cp @ g]])
+        index -= int(_neg_count(Cp[None])[0])
+    return RodStability(index == 0, index, first, tip)
+
+
+def _first_focal(theta: NDArray, f: NDArray) -> float:
+    """First s where the Pruefer angle of the free Jacobi field reaches pi/2 (inf if never)."""
+    ns = theta.shape[0]
+    N = (ns - 1) // 2
+    best = np.inf
+    lo, hi = 0, N
+    # bisection on the number of steps: the angle at s is that of the truncated rod
+    ang_end = _angle_at(theta, f, N)
+    if ang_end <= 0.5 * np.pi:
+        return best
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if _angle_at(theta, f, mid) > 0.5 * np.pi:
+            hi = mid
+        else:
+            lo = mid
+    a0, a1 = _angle_at(theta, f, lo), _angle_at(theta, f, hi)
+    return (lo + (0.5 * np.pi - a0) / (a1 - a0)) / N
+
+
+def _angle_at(theta: NDArray, f: NDArray, k: int) -> float:
+    if k == 0:
+        return 0.0
+    out = np.zeros(1)
+    # theta rescaled: the first k steps of the grid, as a rod of "length" k/N (h unchanged)
+    sub = np.ascontiguousarray(theta[None, : 2 * k + 1])
+    N = (theta.shape[0] - 1) // 2
+    _pruefer_kernel_h(sub, np.ascontiguousarray(f[None]), 1.0 / N, out)
+    return float(out[0])

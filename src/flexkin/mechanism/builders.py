@@ -25,9 +25,13 @@ _PRISMATIC_ANGLES_DEG = (0.0, 120.0, 240.0)
 _KIND = {"prismatic": "3-PFR", "revolute": "3-RFR", "length": "3-PFR(length)"}
 
 
-def _snap(v: float) -> float:
-    """Exact zero for round-off values such as cos(90°) (keeps files and builders identical)."""
-    return 0.0 if abs(v) < 1e-15 else v
+def _snap(v: float, scale: float) -> float:
+    """Exact zero for round-off values such as cos(90°) (keeps files and builders identical).
+
+    The threshold is relative to ``scale`` (the radius the value was computed from), so that
+    tiny mechanisms keep their geometry.
+    """
+    return 0.0 if abs(v) < 1e-15 * scale else v
 
 
 def symmetric_mechanism(
@@ -74,11 +78,14 @@ def symmetric_mechanism(
         if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0):
             raise MechanismError(f"{what}: must be a finite number > 0, got {v!r}")
     a = [math.radians(d) for d in SYMMETRIC_VERTEX_ANGLES_DEG]
-    attach = tuple((_snap(platform_radius * math.cos(t)), _snap(platform_radius * math.sin(t))) for t in a)
+    attach = tuple(
+        (_snap(platform_radius * math.cos(t), platform_radius), _snap(platform_radius * math.sin(t), platform_radius))
+        for t in a
+    )
     rod = Rod(length=None if actuation == "length" else length, EI=EI)
     legs = []
     for i, t in enumerate(a):
-        origin = (_snap(base_radius * math.cos(t)), _snap(base_radius * math.sin(t)))
+        origin = (_snap(base_radius * math.cos(t), base_radius), _snap(base_radius * math.sin(t), base_radius))
         if actuation == "prismatic":
             angle = math.radians(_PRISMATIC_ANGLES_DEG[i])
         elif actuation == "revolute":

@@ -29,7 +29,16 @@ from pathlib import Path
 from typing import Any
 
 from flexkin.errors import MechanismError
-from flexkin.mechanism.model import ACTUATIONS, Leg, Mechanism, Platform, Rod, circular_EI
+from flexkin.mechanism.model import (
+    ACTUATIONS,
+    LENGTH_LIMITS,
+    STIFFNESS_LIMITS,
+    Leg,
+    Mechanism,
+    Platform,
+    Rod,
+    circular_EI,
+)
 
 __all__ = ["load_mechanism", "mechanism_from_dict"]
 
@@ -40,6 +49,15 @@ _PLATFORM_KEYS = ("attach",)
 _LOAD_KEYS = ("force", "moment")
 _LIMITS_KEYS = ("max_strain",)
 _EI_RTOL = 1e-9
+#: Mechanism files larger than this are refused (protects against /dev/zero and the like).
+MAX_FILE_BYTES = 4 * 1024 * 1024
+#: Supported range of each numeric rod key, with its unit.
+_ROD_LIMITS = {
+    "length": (LENGTH_LIMITS, "m"),
+    "radius": (LENGTH_LIMITS, "m"),
+    "E": (STIFFNESS_LIMITS, "Pa"),
+    "EI": (STIFFNESS_LIMITS, "N m^2"),
+}
 
 
 class _KeyProblem(Exception):
@@ -51,7 +69,10 @@ class _KeyProblem(Exception):
 
 # ---- small typed accessors -----------------------------------------------------------
 def _show(value: Any) -> str:
-    s = repr(value)
+    try:
+        s = repr(value)
+    except (ValueError, RecursionError):  # integers with thousands of digits, deep nesting
+        return f"<{type(value).__name__} too large to show>"
     return s if len(s) <= 60 else s[:57] + "..."
 
 
@@ -69,21 +90,58 @@ def _type_name(value: Any) -> str:
     return f"a {type(value).__name__}"
 
 
+def _edit_distance(a: str, b: str) -> int:
+    """Optimal-string-alignment distance (insertions, deletions, substitutions, transpositions)."""
+    prev2: list[int] = []
+    prev = list(range(len(b) + 1))
+    for i in range(1, len(a) + 1):
+        cur = [i] + [0] * len(b)
+        for j in range(1, len(b) + 1):
+            cost = 0 if a[i - 1] == b[j - 1] else 1
+            cur[j] = min(prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + cost)
+            if i > 1 and j > 1 and a[i - 1] == b[j - 2] and a[i - 2] == b[j - 1]:
+                cur[j] = min(cur[j], prev2[j - 2] + 1)
+        prev2, prev = prev, cur
+    return prev[-1]
+
+
+def suggest_key(key: str, allowed: tuple[str, ...]) -> str | None:
+    """The allowed key ``key`` is most likely a misspelling of, or None.
+
+    Case is ignored; a key within one edit (two for keys of five or more characters) of an
+    allowed key it shares a letter with, or similar to it by difflib's ratio (>= 0.6, as
+    :func:`difflib.get_close_matches`), is a candidate; the closest candidate wins.
+    """
+    k = key.lower()
+    best: tuple[int, float, str] | None = None
+    for a in allowed:
+        d = _edit_distance(k, a.lower())
+        ratio = difflib.SequenceMatcher(None, k, a.lower()).ratio()
+        near = d <= (2 if min(len(a), len(k)) >= 5 else 1) and bool(set(k) & set(a.lower()))
+        if near or ratio >= 0.6:
+            cand = (d, -ratio, a)
+            if best is None or cand < best:
+                best = cand
+    return None if best is None else best[2]
+
+
+def _key_text(key: Any) -> str:
+    """A key as written in a key path: bare if it is a plain TOML bare key, quoted otherwise."""
+    key = str(key)
+    if key and all(c.isascii() and (c.isalnum() or c in "_-") for c in key):
+        return key
+    return repr(key)
+
+
 def _check_keys(table: dict[str, Any], allowed: tuple[str, ...], path: str) -> None:
     """Reject unknown keys, with a did-you-mean hint."""
-    lower = {a.lower(): a for a in allowed}
     for key in table:
         if key in allowed:
             continue
-        key = str(key)
-        hint = ""
-        if key.lower() in lower:
-            hint = f" (did you mean {lower[key.lower()]!r}?)"
-        else:
-            close = difflib.get_close_matches(key.lower(), list(lower), n=1, cutoff=0.6)
-            if close:
-                hint = f" (did you mean {lower[close[0]]!r}?)"
-        where = f"{path}.{key}" if path else key
+        close = suggest_key(str(key), allowed)
+        hint = f" (did you mean {close!r}?)" if close else ""
+        shown = _key_text(key)
+        where = f"{path}.{shown}" if path else shown
         known = ", ".join(allowed)
         raise _KeyProblem(where, f"unknown key{hint}; allowed keys here: {known}")
 
@@ -94,19 +152,28 @@ def _table(value: Any, path: str) -> dict[str, Any]:
     return value
 
 
+def _as_float(value: int | float, path: str, shown: Any) -> float:
+    try:
+        return float(value)
+    except OverflowError:  # an integer beyond the float range
+        raise _KeyProblem(path, f"expected a finite number, got an integer too large for a float ({_show(shown)})") from None
+
+
 def _number(value: Any, path: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise _KeyProblem(path, f"expected a number, got {_type_name(value)} {_show(value)}")
-    v = float(value)
+    v = _as_float(value, path, value)
     if not math.isfinite(v):
         raise _KeyProblem(path, f"expected a finite number, got {v!r}")
     return v
 
 
-def _positive(value: Any, path: str, unit: str) -> float:
+def _positive(value: Any, path: str, unit: str, limits: tuple[float, float] | None = None) -> float:
     v = _number(value, path)
     if v <= 0.0:
         raise _KeyProblem(path, f"must be > 0 ({unit}), got {v!r}")
+    if limits is not None and not limits[0] <= v <= limits[1]:
+        raise _KeyProblem(path, f"{v:.6g} {unit} is outside the supported range [{limits[0]:g}, {limits[1]:g}] {unit}")
     return v
 
 
@@ -114,12 +181,15 @@ def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def _pair(value: Any, path: str, what: str = "a list of two numbers") -> tuple[float, float]:
+def _pair(value: Any, path: str, what: str = "a list of two numbers", bound: float | None = None) -> tuple[float, float]:
+    """Two finite numbers; with ``bound``, each of magnitude <= bound (m)."""
     if not isinstance(value, list) or len(value) != 2 or not all(_is_number(v) for v in value):
         raise _KeyProblem(path, f"expected {what}, got {_show(value)}")
-    a, b = float(value[0]), float(value[1])
+    a, b = _as_float(value[0], path, value), _as_float(value[1], path, value)
     if not (math.isfinite(a) and math.isfinite(b)):
         raise _KeyProblem(path, f"expected finite numbers, got {_show(value)}")
+    if bound is not None and max(abs(a), abs(b)) > bound:
+        raise _KeyProblem(path, f"values must be within +-{bound:g} m, got {_show(value)}")
     return (a, b)
 
 
@@ -133,10 +203,10 @@ def _require(table: dict[str, Any], key: str, path: str, what: str) -> Any:
 def _rod_values(table: dict[str, Any], path: str) -> dict[str, float]:
     """Validated numeric rod keys present in ``table``."""
     out: dict[str, float] = {}
-    units = {"length": "m", "E": "Pa", "radius": "m", "EI": "N m^2"}
     for key in _ROD_KEYS:
         if key in table:
-            out[key] = _positive(table[key], f"{path}.{key}", units[key])
+            limits, unit = _ROD_LIMITS[key]
+            out[key] = _positive(table[key], f"{path}.{key}", unit, limits)
     return out
 
 
@@ -154,6 +224,15 @@ def _resolve_rod(
     if E is not None and radius is not None:
         EI_c = circular_EI(E, radius)
         if EI is None:
+            lo, hi = STIFFNESS_LIMITS
+            if not lo <= EI_c <= hi:
+                where = path if ({"E", "radius"} & overrides.keys()) else "rod"
+                raise _KeyProblem(
+                    f"{where}.radius",
+                    f"the bending stiffness E*pi*radius**4/4 = {EI_c:.6g} N m^2 (E = {E:g} Pa from {origin['E']}, "
+                    f"radius = {radius:g} m from {origin['radius']}) is outside the supported range "
+                    f"[{lo:g}, {hi:g}] N m^2",
+                )
             EI = EI_c
         elif abs(EI - EI_c) > _EI_RTOL * max(abs(EI), abs(EI_c)):
             all_rod = not ({"EI", "E", "radius"} & overrides.keys())
@@ -195,7 +274,7 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float]) -> Leg:
             f"{path}.actuation",
             f"unknown actuation {act!r} (expected one of {', '.join(map(repr, ACTUATIONS))}{hint})",
         )
-    origin = _pair(_require(table, "origin", path, "[x, y] in m"), f"{path}.origin")
+    origin = _pair(_require(table, "origin", path, "[x, y] in m"), f"{path}.origin", bound=LENGTH_LIMITS[1])
     if act == "revolute":
         angle_deg = _number(table["angle"], f"{path}.angle") if "angle" in table else 0.0
     else:
@@ -205,7 +284,8 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float]) -> Leg:
         )
     rng = None
     if "range" in table:
-        lo, hi = _pair(table["range"], f"{path}.range", "[lo, hi]")
+        lo, hi = _pair(table["range"], f"{path}.range", "[lo, hi]",
+                       bound=None if act == "revolute" else LENGTH_LIMITS[1])
         unit = "deg" if act == "revolute" else "m"
         if not lo < hi:
             raise _KeyProblem(f"{path}.range", f"lower bound must be < upper bound, got [{lo:g}, {hi:g}] {unit}")
@@ -225,7 +305,7 @@ def _platform(value: Any) -> Platform:
     if not isinstance(pts, list) or len(pts) != 3:
         n = f"{len(pts)} entries" if isinstance(pts, list) else _show(pts)
         raise _KeyProblem("platform.attach", f"expected exactly three points [[x1, y1], [x2, y2], [x3, y3]], got {n}")
-    b = tuple(_pair(p, f"platform.attach[{j + 1}]", "a point [x, y]") for j, p in enumerate(pts))
+    b = tuple(_pair(p, f"platform.attach[{j + 1}]", "a point [x, y]", bound=LENGTH_LIMITS[1]) for j, p in enumerate(pts))
     try:
         return Platform(attach=b)  # type: ignore[arg-type]
     except MechanismError as exc:  # coincident / collinear points
@@ -339,22 +419,36 @@ def load_mechanism(path: str | os.PathLike[str]) -> Mechanism:
         If the file cannot be read, is not valid TOML, or describes an invalid mechanism;
         the message names the file and the offending key.
     """
-    src = os.fspath(path)
-    src = src if isinstance(src, str) else os.fsdecode(src)
     try:
-        raw = Path(src).read_bytes()
+        src = os.fspath(path)
+    except TypeError:
+        raise MechanismError(f"{path!r}: expected a file path") from None
+    src = src if isinstance(src, str) else os.fsdecode(src)
+    if "\0" in src:
+        raise MechanismError(f"{src!r}: invalid file name (contains a NUL character)")
+    if not src:
+        raise MechanismError("'': empty file name")
+    try:
+        with open(src, "rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
     except FileNotFoundError:
         raise MechanismError(f"{src}: file not found") from None
     except IsADirectoryError:
         raise MechanismError(f"{src}: is a directory, not a mechanism file") from None
     except OSError as exc:
         raise MechanismError(f"{src}: cannot read file ({exc.strerror or exc})") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise MechanismError(f"{src}: file too large for a mechanism file (more than {MAX_FILE_BYTES} bytes)")
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")  # a leading byte-order mark (Windows editors) is accepted
     except UnicodeDecodeError as exc:
         raise MechanismError(f"{src}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise MechanismError(f"{src}: malformed TOML: {exc}") from None
+    except RecursionError:
+        raise MechanismError(f"{src}: malformed TOML: arrays or inline tables nested too deeply") from None
+    except ValueError as exc:  # e.g. an integer literal with thousands of digits
+        raise MechanismError(f"{src}: malformed TOML: {_show(str(exc))}") from None
     return mechanism_from_dict(data, source=src)

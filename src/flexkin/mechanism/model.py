@@ -42,6 +42,8 @@ __all__ = [
     "Platform",
     "Mechanism",
     "circular_EI",
+    "LENGTH_LIMITS",
+    "STIFFNESS_LIMITS",
 ]
 
 Actuation = Literal["prismatic", "revolute", "length"]
@@ -64,16 +66,40 @@ def circular_EI(E: float, radius: float) -> float:
     Returns
     -------
     float
-        ``E * pi * radius**4 / 4`` (N m^2).
+        ``E * pi * radius**4 / 4`` (N m^2); ``inf`` if that overflows.
     """
-    return float(E) * math.pi * float(radius) ** 4 / 4.0
+    try:
+        return float(E) * math.pi * float(radius) ** 4 / 4.0
+    except OverflowError:
+        return math.inf
+
+
+#: Supported range of every length-like quantity (m): rod lengths and radii, the platform size,
+#: and the largest coordinate magnitude (origins, attach points, prismatic/length strokes).
+#: Far beyond any real mechanism, and narrow enough that squares and fourth powers (EI/L^2,
+#: E pi r^4 / 4, ...) never overflow or underflow in double precision.
+LENGTH_LIMITS: tuple[float, float] = (1e-12, 1e12)
+
+#: Supported range of the bending stiffness EI (N m^2) and of Young's modulus E (Pa).
+STIFFNESS_LIMITS: tuple[float, float] = (1e-30, 1e30)
+
+
+def _short(value: object) -> str:
+    try:
+        s = repr(value)
+    except (ValueError, RecursionError):  # integers with thousands of digits, deep nesting
+        return f"<{type(value).__name__} too large to show>"
+    return s if len(s) <= 60 else s[:57] + "..."
 
 
 def _finite(value: object, what: str) -> float:
     """Return ``value`` as a finite float or raise :class:`MechanismError`."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise MechanismError(f"{what}: expected a number, got {value!r}")
-    v = float(value)
+        raise MechanismError(f"{what}: expected a number, got {_short(value)}")
+    try:
+        v = float(value)
+    except OverflowError:  # an integer beyond the float range
+        raise MechanismError(f"{what}: expected a finite number, got an integer too large for a float") from None
     if not math.isfinite(v):
         raise MechanismError(f"{what}: expected a finite number, got {v!r}")
     return v
@@ -86,13 +112,30 @@ def _positive(value: object, what: str) -> float:
     return v
 
 
+def _within(v: float, limits: tuple[float, float], what: str, unit: str) -> float:
+    """``v`` (> 0) if it lies in ``limits``, else a MechanismError naming the supported range."""
+    lo, hi = limits
+    if not lo <= v <= hi:
+        raise MechanismError(f"{what}: {v:.6g} {unit} is outside the supported range [{lo:g}, {hi:g}] {unit}")
+    return v
+
+
+def _bounded_point(value: object, what: str) -> tuple[float, float]:
+    """:func:`_point` whose coordinates are within +-LENGTH_LIMITS[1] (m)."""
+    p = _point(value, what)
+    hi = LENGTH_LIMITS[1]
+    if max(abs(p[0]), abs(p[1])) > hi:
+        raise MechanismError(f"{what}: coordinates must be within +-{hi:g} m, got ({p[0]:.6g}, {p[1]:.6g})")
+    return p
+
+
 def _point(value: object, what: str) -> tuple[float, float]:
     try:
         seq = tuple(value)  # type: ignore[arg-type]
     except TypeError:
-        raise MechanismError(f"{what}: expected two numbers (x, y), got {value!r}") from None
+        raise MechanismError(f"{what}: expected two numbers (x, y), got {_short(value)}") from None
     if len(seq) != 2:
-        raise MechanismError(f"{what}: expected two numbers (x, y), got {value!r}")
+        raise MechanismError(f"{what}: expected two numbers (x, y), got {_short(value)}")
     return (_finite(seq[0], what), _finite(seq[1], what))
 
 
@@ -120,12 +163,16 @@ class Rod:
 
     def __post_init__(self) -> None:
         if self.length is not None:
-            object.__setattr__(self, "length", _positive(self.length, "rod.length"))
-        object.__setattr__(self, "EI", _positive(self.EI, "rod.EI"))
+            v = _positive(self.length, "rod.length")
+            object.__setattr__(self, "length", _within(v, LENGTH_LIMITS, "rod.length", "m"))
+        v = _positive(self.EI, "rod.EI")
+        object.__setattr__(self, "EI", _within(v, STIFFNESS_LIMITS, "rod.EI", "N m^2"))
         if self.radius is not None:
-            object.__setattr__(self, "radius", _positive(self.radius, "rod.radius"))
+            v = _positive(self.radius, "rod.radius")
+            object.__setattr__(self, "radius", _within(v, LENGTH_LIMITS, "rod.radius", "m"))
         if self.E is not None:
-            object.__setattr__(self, "E", _positive(self.E, "rod.E"))
+            v = _positive(self.E, "rod.E")
+            object.__setattr__(self, "E", _within(v, STIFFNESS_LIMITS, "rod.E", "Pa"))
 
     @classmethod
     def circular(cls, length: float | None, E: float, radius: float) -> Rod:
@@ -144,8 +191,8 @@ class Rod:
         -------
         Rod
         """
-        E = _positive(E, "rod.E")
-        radius = _positive(radius, "rod.radius")
+        E = _within(_positive(E, "rod.E"), STIFFNESS_LIMITS, "rod.E", "Pa")
+        radius = _within(_positive(radius, "rod.radius"), LENGTH_LIMITS, "rod.radius", "m")
         return cls(length=length, EI=circular_EI(E, radius), radius=radius, E=E)
 
     def strain(self, curvature: ArrayLike) -> NDArray[np.float64]:
@@ -204,7 +251,7 @@ class Leg:
                 f"leg.actuation: unknown actuation {self.actuation!r} "
                 f"(expected one of {', '.join(map(repr, ACTUATIONS))})"
             )
-        object.__setattr__(self, "origin", _point(self.origin, "leg.origin"))
+        object.__setattr__(self, "origin", _bounded_point(self.origin, "leg.origin"))
         object.__setattr__(self, "angle", _finite(self.angle, "leg.angle"))
         if not isinstance(self.rod, Rod):
             raise MechanismError(f"leg.rod: expected a Rod, got {self.rod!r}")
@@ -212,6 +259,8 @@ class Leg:
             raise MechanismError(f"leg.rod.length: a {self.actuation} leg needs a rod length")
         if self.range is not None:
             lo, hi = _point(self.range, "leg.range")
+            if self.actuation != "revolute":
+                _bounded_point((lo, hi), "leg.range")
             if not lo < hi:
                 raise MechanismError(f"leg.range: lower bound must be < upper bound, got {self.range!r}")
             if self.actuation == "length" and lo <= 0.0:
@@ -333,6 +382,11 @@ def _triangle_check(points: tuple[tuple[float, float], ...], what: str) -> None:
                     f"{what}: attach points {i + 1} and {j + 1} coincide "
                     f"(({p[i][0]:.6g}, {p[i][1]:.6g}) and ({p[j][0]:.6g}, {p[j][1]:.6g}))"
                 )
+    if size < LENGTH_LIMITS[0]:
+        raise MechanismError(
+            f"{what}: the platform is too small (largest distance between attach points {size:.3g} m, "
+            f"supported >= {LENGTH_LIMITS[0]:g} m)"
+        )
     e1, e2 = p[1] - p[0], p[2] - p[0]
     area = 0.5 * abs(float(e1[0] * e2[1] - e1[1] * e2[0]))
     if area < 1e-9 * size**2:
@@ -362,7 +416,7 @@ class Platform:
             raise MechanismError(f"platform.attach: expected three points, got {self.attach!r}") from None
         if len(pts) != 3:
             raise MechanismError(f"platform.attach: expected exactly three points, got {len(pts)}")
-        pts = tuple(_point(p, f"platform.attach[{i + 1}]") for i, p in enumerate(pts))
+        pts = tuple(_bounded_point(p, f"platform.attach[{i + 1}]") for i, p in enumerate(pts))
         _triangle_check(pts, "platform.attach")
         object.__setattr__(self, "attach", pts)
 
