@@ -127,7 +127,90 @@ def _build_parser() -> argparse.ArgumentParser:
     pa.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode for the start IK (default 2)")
     pa.add_argument("--json", action="store_true", help="print the JSON result")
     pa.add_argument("--plot", metavar="FILE", help="inputs, Jacobian determinants and stability margin vs t")
+    wk = sub.add_parser("workspace", help="constant-orientation workspace by wave propagation (paper Fig. 17)")
+    wk.add_argument("mechanism", help="mechanism file (TOML, SPEC §3)")
+    wk.add_argument("--theta", type=_finite("--theta"), action="append", required=True, metavar="DEG",
+                    help="platform orientation [deg]; repeat for several orientations (computed in parallel)")
+    wk.add_argument("--seed", nargs=2, type=_finite("--seed"), metavar=("X", "Y"), default=(0.0, 0.0),
+                    help="seed position [m] (default 0 0)")
+    wk.add_argument("--step", type=_positive("--step"), help="grid step [m] (default: 1/100 of the bounds)")
+    wk.add_argument("--bounds", nargs=4, type=_finite("--bounds"), metavar=("X0", "X1", "Y0", "Y1"),
+                    help="grid box [m] (default: the legs' origins grown by a quarter rod length)")
+    wk.add_argument("--load", nargs=3, type=_finite("--load"), metavar=("FX", "FY", "MZ"),
+                    help="load wrench at P [N, N, N m] (default: the file's [load] or zero)")
+    wk.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode of the seed IK (default 2)")
+    wk.add_argument("--first-aspect", action="store_true",
+                    help="map only the aspect of the first stable seed solution (default: every stable one)")
+    wk.add_argument("--color", default="modes", choices=["modes", "margin", "cond", "input1", "input2", "input3"],
+                    help="colour the region by d-mode combination (default) or a quantity")
+    wk.add_argument("--jobs", type=_count("--jobs"), default=None,
+                    help="parallel processes for several orientations (default: the number of cores)")
+    wk.add_argument("--save", metavar="FILE", help="save the maps (.npz; one file per orientation, suffixed)")
+    wk.add_argument("--json", action="store_true", help="print a JSON summary")
+    wk.add_argument("--plot", metavar="FILE", help="figure like Fig. 17, one panel per orientation")
     return p
+
+
+def _workspace_task(args: tuple) -> Any:
+    from .workspace import workspace
+
+    mech, theta, kw = args
+    return workspace(mech, theta, **kw)
+
+
+def _cmd_workspace(a) -> int:
+    import os
+
+    from .workspace import default_grid
+
+    mech = _load_mech(a.mechanism)
+    default_grid(mech, a.step, a.bounds)  # validate before starting any work
+    kw = dict(seed=tuple(a.seed), load=a.load, step=a.step, bounds=a.bounds, max_mode=a.max_mode,
+              all_aspects=not a.first_aspect)
+    thetas = [math.radians(t) for t in a.theta]
+    jobs = min(len(thetas), a.jobs or os.cpu_count() or 1)
+    if jobs > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        from tqdm.auto import tqdm
+
+        with ProcessPoolExecutor(max_workers=jobs) as ex:
+            futs = [ex.submit(_workspace_task, (mech, th, kw)) for th in thetas]
+            for _ in tqdm([f for f in futs], desc="orientations", unit="map", leave=False, disable=a.json):
+                pass
+            results = [f.result() for f in futs]
+    else:
+        from .workspace import workspace
+
+        results = [workspace(mech, th, progress=not a.json, **kw) for th in thetas]
+    if a.save:
+        root, ext = os.path.splitext(a.save)
+        for t, ws in zip(a.theta, results):
+            ws.save(a.save if len(results) == 1 else f"{root}_theta{t:g}{ext or '.npz'}")
+    if a.json:
+        out = []
+        for ws in results:
+            out.append({"theta": float(math.degrees(ws.theta)), "step": ws.step, "seed": list(ws.seed),
+                        "elapsed": ws.elapsed, "message": ws.message,
+                        "aspects": [{"seeds": [s + 1 for s in mp.seeds], "cells": mp.area_cells,
+                                     "area": mp.area_cells * ws.step**2,
+                                     "modes": sorted({"".join(map(str, q)) for q in mp.modes[mp.reached]}),
+                                     "boundary_ik_cells": int(mp.boundary_ik.sum()),
+                                     "boundary_fk_cells": int(mp.boundary_fk.sum()),
+                                     "unresolved_cells": int(mp.boundary_seam.sum())} for mp in ws.maps]})
+        print(_dump({"problem": "workspace", "mechanism": mech.name, "workspaces": out}))
+    else:
+        for ws in results:
+            print(ws.summary())
+    for ws in results:
+        if ws.message:
+            print(f"flexkin workspace: theta = {math.degrees(ws.theta):g} deg: {ws.message}", file=sys.stderr)
+    if a.plot:
+        from .plot.workspace import plot_workspace
+
+        plot_workspace(results, a.plot, color_by=a.color)
+        print(f"figure written to {a.plot}", file=sys.stderr)
+    return 0
 
 
 def _count(name: str, lo: int = 1):
@@ -306,7 +389,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         a = parser.parse_args(argv)
         handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics, "fk": _cmd_kinematics,
-                   "path": _cmd_path}[a.command]
+                   "path": _cmd_path, "workspace": _cmd_workspace}[a.command]
         return handler(a)
     except CLIError as e:
         print(str(e), file=sys.stderr)

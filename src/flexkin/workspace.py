@@ -29,7 +29,7 @@ from typing import Any, Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .kinematics.continuation import continue_ik, unknown_scale
+from .kinematics.continuation import SEAM_V, continue_ik, unknown_scale
 from .kinematics.ik import _as_load, _check_mode, ik
 from .kinematics.jacobian import kinematic_jacobians
 from .kinematics.results import Solution
@@ -37,10 +37,10 @@ from .kinematics.stability import mechanism_stability
 from .kinematics.system import MechArrays
 from .rod.closed_form import mode_of
 
-__all__ = ["workspace", "Workspace", "WorkspaceMap", "load_workspace", "REACHED", "UNSTABLE", "FAILED"]
+__all__ = ["workspace", "Workspace", "WorkspaceMap", "load_workspace", "REACHED", "UNSTABLE", "FAILED", "SEAM"]
 
 #: status codes of a grid point
-UNVISITED, REACHED, UNSTABLE, FAILED = 0, 1, 2, 3
+UNVISITED, REACHED, UNSTABLE, FAILED, SEAM = 0, 1, 2, 3, 4
 _NEIGHBOURS = ((1, 0), (-1, 0), (0, 1), (0, -1))
 
 
@@ -51,7 +51,10 @@ class WorkspaceMap:
     ``modes``: ``(ny, nx, 3)``), with meaningful values where ``status == REACHED``.
 
     ``status``: 0 unvisited, 1 reached (stable equilibrium), 2 unstable (not entered),
-    3 continuation failed (not entered).  ``boundary_ik`` / ``boundary_fk``: reached cells
+    3 continuation failed (not entered), 4 not resolved: the step failed while a rod was
+    close to straight under tension, where the elliptic chart has its seam (``|k| = 1``):
+    a limitation of the rod parameterisation, not a singularity of the mechanism.
+    ``boundary_seam``: reached cells next to such cells.  ``boundary_ik`` / ``boundary_fk``: reached cells
     with a neighbour not entered because of an IK singularity / an FK singularity or
     instability.  ``seeds``: indices (in the seed IK result) of the solutions merged here.
     """
@@ -67,6 +70,7 @@ class WorkspaceMap:
     boundary_fk: NDArray[np.bool_]
     seeds: tuple[int, ...]
     zrod: NDArray[np.float64] = field(repr=False, default=None)
+    boundary_seam: NDArray[np.bool_] = field(repr=False, default=None)
 
     @property
     def reached(self) -> NDArray[np.bool_]:
@@ -130,7 +134,7 @@ class Workspace:
                                 "message": self.message, "n_maps": len(self.maps)}
         for k, m in enumerate(self.maps):
             for name in ("status", "inputs", "modes", "margin", "det_ik", "det_fk", "cond", "boundary_ik",
-                         "boundary_fk", "zrod"):
+                         "boundary_fk", "zrod", "boundary_seam"):
                 data[f"map{k}_{name}"] = getattr(m, name)
             data[f"map{k}_seeds"] = np.array(m.seeds)
         np.savez_compressed(path, **data)
@@ -146,7 +150,8 @@ class Workspace:
             combos = sorted({"".join(map(str, q)) for q in m.modes[r]})
             lines.append(f"  aspect {k + 1} (seed solutions {', '.join(str(s + 1) for s in m.seeds)}): "
                          f"{int(r.sum())} cells, area {r.sum() * h * h:.4g} m^2, d-modes {', '.join(combos)}; "
-                         f"boundary cells: IK {int(m.boundary_ik.sum())}, FK/instability {int(m.boundary_fk.sum())}")
+                         f"boundary cells: IK {int(m.boundary_ik.sum())}, FK/instability {int(m.boundary_fk.sum())}, "
+                         f"unresolved (rod straight under tension) {int(m.boundary_seam.sum())}")
         if self.message:
             lines.append(self.message)
         return "\n".join(lines)
@@ -164,7 +169,7 @@ def load_workspace(path: str) -> Workspace:
     maps = []
     for k in range(int(d["n_maps"])):
         g = {name: d[f"map{k}_{name}"] for name in ("status", "inputs", "modes", "margin", "det_ik", "det_fk", "cond",
-                                                      "boundary_ik", "boundary_fk", "zrod")}
+                                                      "boundary_ik", "boundary_fk", "zrod", "boundary_seam")}
         maps.append(WorkspaceMap(seeds=tuple(int(s) for s in d[f"map{k}_seeds"]), **g))
     return Workspace(str(d["mechanism_name"]), tuple(str(k) for k in d["kinds"]), float(d["theta"]),
                      tuple(float(v) for v in d["load"]), d["x"], d["y"], tuple(float(v) for v in d["seed"]),
@@ -195,6 +200,31 @@ def default_grid(mech, step: float | None = None, bounds: ArrayLike | None = Non
     return b[0] + step * np.arange(nx), b[2] + step * np.arange(ny)
 
 
+def _continue_adaptive(m: MechArrays, x: NDArray, p0: NDArray, p1: NDArray, w: NDArray, levels: int = 3
+                       ) -> tuple[NDArray, NDArray]:
+    """:func:`continue_ik` from ``p0`` to ``p1``; failed rows are retried with the step cut
+    into 2, 4, ... ``2**levels`` sub-steps before the target is declared out of reach."""
+    xn, ok = continue_ik(m, x, p0, p1, w)
+    for lev in range(1, levels + 1):
+        bad = np.flatnonzero(~ok)
+        if bad.size == 0:
+            break
+        k = 2 ** lev
+        xb, alive = x[bad].copy(), np.ones(bad.size, bool)
+        for step in range(k):
+            a = p0[bad] + (step / k) * (p1[bad] - p0[bad])
+            b = p0[bad] + ((step + 1) / k) * (p1[bad] - p0[bad])
+            idx = np.flatnonzero(alive)
+            if idx.size == 0:
+                break
+            xs, oks = continue_ik(m, xb[idx], a[idx], b[idx], w)
+            xb[idx] = xs
+            alive[idx[~oks]] = False
+        xn[bad[alive]] = xb[alive]
+        ok[bad[alive]] = True
+    return xn, ok
+
+
 def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray, Y: NDArray, theta: float,
                w: NDArray, claimed: list[tuple[NDArray, NDArray]], progress: Callable[[int], None] | None
                ) -> tuple[dict[str, NDArray], int, set[int]]:
@@ -211,6 +241,7 @@ def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray,
     sfk = np.zeros((ny, nx))
     bik = np.zeros((ny, nx), bool)
     bfk = np.zeros((ny, nx), bool)
+    bseam = np.zeros((ny, nx), bool)
     scale = unknown_scale(m)
     joins: set[int] = set()
 
@@ -245,17 +276,7 @@ def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray,
         xs = sol[S[:, 0], S[:, 1]]
         p0 = np.stack([X[S[:, 1]], Y[S[:, 0]], np.full(len(S), theta)], -1)
         p1 = np.stack([X[D[:, 1]], Y[D[:, 0]], np.full(len(D), theta)], -1)
-        xn, ok = continue_ik(m, xs, p0, p1, w)
-        # a failed step is retried in two halves before the target is declared out of reach
-        if np.any(~ok):
-            bad = np.flatnonzero(~ok)
-            pm = 0.5 * (p0[bad] + p1[bad])
-            xh, okh = continue_ik(m, xs[bad], p0[bad], pm, w)
-            sel = bad[okh]
-            if sel.size:
-                x2, ok2 = continue_ik(m, xh[okh], pm[okh], p1[sel], w)
-                xn[sel[ok2]] = x2[ok2]
-                ok[sel[ok2]] = True
+        xn, ok = _continue_adaptive(m, xs, p0, p1, w)
         steps += len(D)
         new_front = []
         if np.any(ok):
@@ -288,7 +309,14 @@ def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray,
         for r in np.flatnonzero(~ok):
             jj, ii = D[r]
             j, i = S[r]
-            if status[jj, ii] == UNVISITED:
+            if np.any(np.abs(xs[r, 0:6:2]) > SEAM_V):
+                # a rod of the parent is close to straight under tension, where the elliptic
+                # chart has its seam: the step failed for the chart, not for the mechanism
+                if status[jj, ii] == UNVISITED:
+                    status[jj, ii] = SEAM
+                bseam[j, i] = True
+                continue
+            if status[jj, ii] in (UNVISITED, SEAM):
                 status[jj, ii] = FAILED
             bik[j, i] = True
         if progress is not None:
@@ -298,8 +326,9 @@ def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray,
     reached = status == REACHED
     bik &= reached
     bfk &= reached
+    bseam &= reached & ~bik & ~bfk
     return ({"status": status, "sol": sol, "margin": margin, "det_ik": dik, "det_fk": dfk, "cond": cond,
-             "boundary_ik": bik, "boundary_fk": bfk}, steps, joins)
+             "boundary_ik": bik, "boundary_fk": bfk, "boundary_seam": bseam}, steps, joins)
 
 
 def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load: ArrayLike | None = None,
@@ -409,7 +438,7 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
         modes = np.where(np.isfinite(sol[..., 1:6:2]), mode_of(np.nan_to_num(sol[..., 1:6:2])), 0).astype(np.int8)
         maps.append(WorkspaceMap(r["status"], np.nan_to_num(sol[..., 6:]), modes, r["margin"],
                                  r["det_ik"], r["det_fk"], r["cond"], r["boundary_ik"], r["boundary_fk"],
-                                 tuple(sorted(set(s))), np.nan_to_num(sol[..., :6])))
+                                 tuple(sorted(set(s))), np.nan_to_num(sol[..., :6]), r["boundary_seam"]))
     # merged maps: a map joined by a later seed is reported within that later map's union
     maps.sort(key=lambda mp: -mp.area_cells)
     return Workspace(mech.name, kinds, th, tuple(map(float, w)), X, Y, (float(X[i0]), float(Y[j0])), tuple(maps),

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from .ik import RESIDUAL_TOL
 from .jacobian import system_derivatives
-from .system import REVOLUTE, MechArrays, project_zrod, residual
+from .system import REVOLUTE, MechArrays, project_zrod, residual, rod_world
 
 __all__ = ["continue_ik", "unknown_scale"]
 
@@ -107,9 +107,70 @@ def continue_ik(m: MechArrays, x: NDArray, pose0: NDArray, pose1: NDArray, load:
         y[idx], r[idx], norm[idx] = ya[better], ra[better], na[better]
         if np.all(~better):
             break
-    # accept: converged, and the corrector stayed close to the prediction (same branch)
-    pred_len = np.max(np.abs(dx_pred) / scale, axis=1)
-    corr_len = np.max(np.abs(y - pred) / scale, axis=1)
-    success = ok & (norm <= RESIDUAL_TOL) & (corr_len <= 0.5 * pred_len + 1e-6)
+    # accept: converged, and the corrector stayed close to the prediction (same branch), in
+    # physical terms (inputs and tip forces: the chart is very nonlinear near its seam)
+    success = ok & (norm <= RESIDUAL_TOL) & _close(m, x, pred, y)
     out = np.where(success[:, None], y, x)
+    seam = ~success & ok & np.any(np.abs(x[:, 0:6:2]) > SEAM_V, axis=1)
+    if np.any(seam):
+        idx = np.flatnonzero(seam)
+        xs, okk = _across_seam(m, x[idx], pred[idx], pose1[idx], load, newton_iter + 4)
+        out[idx[okk]] = xs[okk]
+        success[idx[okk]] = True
     return out, success
+
+
+#: a rod with |v| above this is near the seam of the chart (straight under tension, |k| -> 1)
+SEAM_V = 4.0
+
+
+def _physical(m: MechArrays, x: NDArray) -> NDArray:
+    """Chart-free part of IK unknowns: inputs (scaled) and world tip forces (in EI/L^2)."""
+    _, force = rod_world(m, x[:, :6], x[:, 6:])
+    return np.concatenate([x[:, 6:] / unknown_scale(m)[6:], force.reshape(-1, 6) / m.F_ref], axis=1)
+
+
+def _close(m: MechArrays, x: NDArray, pred: NDArray, y: NDArray) -> NDArray[np.bool_]:
+    """The corrected ``y`` is within half the predicted physical change of the prediction."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        px, pp, py = _physical(m, x), _physical(m, pred), _physical(m, y)
+        step = np.max(np.abs(pp - px), axis=1)
+        corr = np.max(np.abs(py - pp), axis=1)
+    return np.isfinite(corr) & (corr <= 0.5 * step + 1e-6)
+
+
+def _across_seam(m: MechArrays, x: NDArray, pred: NDArray, pose1: NDArray, load: NDArray,
+                 iters: int) -> tuple[NDArray, NDArray]:
+    """Continue across the chart seam where a rod passes straight under tension.
+
+    Such a rod has ``|k| -> 1`` and ``phis -> pi/2`` from one side and continues as its
+    mirror image (``v -> -v``) on the other side.  Newton restarts from the prediction with
+    those rods mirrored; the result is accepted when it converges and its inputs (the
+    physical, chart-free part of the state) stay close to the predicted ones.
+    """
+    y = pred.copy()
+    near = np.abs(x[:, 0:6:2]) > SEAM_V
+    for i in range(3):
+        y[near[:, i], 2 * i] = -x[near[:, i], 2 * i]
+        y[near[:, i], 2 * i + 1] = x[near[:, i], 2 * i + 1]
+    r = residual(m, y[:, :6], pose1, y[:, 6:], load)
+    norm = np.max(np.abs(r), axis=1)
+    norm[~np.isfinite(norm)] = np.inf
+    ok = np.isfinite(norm)
+    for _ in range(iters):
+        act = ok & (norm > RESIDUAL_TOL * 1e-2)
+        if not np.any(act):
+            break
+        Aa, _ = _A_ik(m, y[act], pose1[act])
+        d, good = _solve(Aa, -r[act])
+        ya = y[act] + d
+        ya[:, :6] = project_zrod(ya[:, :6])
+        ra = residual(m, ya[:, :6], pose1[act], ya[:, 6:], load)
+        na = np.max(np.abs(ra), axis=1)
+        na[~np.isfinite(na)] = np.inf
+        better = good & (na < norm[act])
+        idx = np.flatnonzero(act)[better]
+        y[idx], r[idx], norm[idx] = ya[better], ra[better], na[better]
+        if np.all(~better):
+            break
+    return y, ok & (norm <= RESIDUAL_TOL) & _close(m, x, pred, y)

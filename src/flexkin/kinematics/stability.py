@@ -109,7 +109,7 @@ def rod_compliance(v: ArrayLike, phis: ArrayLike, step: float = 1e-6) -> NDArray
     straight rod (whose axial compliance is 0).
     """
     Jp, Jf = _chart_jacobians(v, phis, step)
-    return Jp @ np.linalg.inv(Jf)
+    return Jp @ np.linalg.pinv(Jf)
 
 
 def _chart_jacobians(v: ArrayLike, phis: ArrayLike, step: float) -> tuple[NDArray, NDArray]:
@@ -157,18 +157,20 @@ def rod_tip_stiffness(v: ArrayLike, phis: ArrayLike, step: float = 1e-6) -> NDAr
 
     ``K`` is the Hessian of the rod's equilibrium energy as a function of its tip position
     (``grad U = n``), so it is symmetric; computed as ``(dn/dz) (dp/dz)^-1`` on the chart
-    ``z = (v, phis)`` by central differences of the closed form (Eqs. 9, 12, 13).
+    ``z = (v, phis)`` by central differences of the closed form (Eqs. 9, 12, 13).  Where the
+    chart is degenerate (the unloaded straight rod, the pole of the chart) the derivative is
+    taken at a point 1e-6 away, inside the loaded rods.
     """
-    v = np.atleast_1d(np.asarray(v, dtype=float))
-    phis = np.atleast_1d(np.asarray(phis, dtype=float))
-    cols_p, cols_f = [], []
-    for dv, dp in ((step, 0.0), (0.0, step)):
-        a, b = tip_chart(v + dv, phis + dp), tip_chart(v - dv, phis - dp)
-        cols_p.append(np.stack([a.x - b.x, a.y - b.y], -1) / (2 * step))
-        cols_f.append(np.stack([a.fx - b.fx, a.fy - b.fy], -1) / (2 * step))
-    Jp = np.stack(cols_p, -1)
-    Jf = np.stack(cols_f, -1)
-    return Jf @ np.linalg.inv(Jp)
+    v = np.atleast_1d(np.asarray(v, dtype=float)).copy()
+    phis = np.atleast_1d(np.asarray(phis, dtype=float)).copy()
+    Jp, Jf = _chart_jacobians(v, phis, step)
+    det = np.linalg.det(Jp)
+    bad = ~(np.abs(det) > 1e-12 * np.sum(Jp**2, axis=(1, 2)))
+    if np.any(bad):
+        phis[bad] -= 1e-6
+        v[bad] += 1e-6
+        Jp[bad], Jf[bad] = _chart_jacobians(v[bad], phis[bad], step)
+    return Jf @ np.linalg.pinv(Jp)
 
 
 def reduced_hessian(m: MechArrays, zrod: NDArray, pose: NDArray, inputs: NDArray) -> NDArray[np.float64]:
