@@ -34,7 +34,7 @@ from .kinematics.ik import _as_load, _check_mode, ik
 from .kinematics.jacobian import kinematic_jacobians
 from .kinematics.results import Solution
 from .kinematics.stability import mechanism_stability
-from .kinematics.system import MechArrays
+from .kinematics.system import REVOLUTE, MechArrays
 from .rod.closed_form import mode_of
 
 __all__ = ["workspace", "Workspace", "WorkspaceMap", "load_workspace", "REACHED", "UNSTABLE", "FAILED", "SEAM"]
@@ -309,9 +309,12 @@ def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray,
         for r in np.flatnonzero(~ok):
             jj, ii = D[r]
             j, i = S[r]
-            if np.any(np.abs(xs[r, 0:6:2]) > SEAM_V):
-                # a rod of the parent is close to straight under tension, where the elliptic
-                # chart has its seam: the step failed for the chart, not for the mechanism
+            taut = np.abs(xs[r, 0:6:2]) > SEAM_V
+            if np.any(taut) and not np.any(taut & (m.kind == REVOLUTE)):
+                # a rod of a prismatic or length leg is close to straight under tension, where
+                # the elliptic chart has its seam: the step failed for the chart, not for the
+                # mechanism (a revolute leg's taut rod is at its reach |B - A| = L instead:
+                # a true boundary)
                 if status[jj, ii] == UNVISITED:
                     status[jj, ii] = SEAM
                 bseam[j, i] = True
