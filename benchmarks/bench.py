@@ -66,6 +66,25 @@ def main() -> None:
             nsol = len(flexkin.fk(mech, u))
             rows.append((f"full FK, max_mode 2, {name}", f"{t:.2f} s", f"{nsol} solutions"))
 
+    # continuation and workspace (paper §6)
+    from flexkin.kinematics.continuation import continue_ik
+    from flexkin.kinematics.system import MechArrays
+    from flexkin.workspace import workspace
+
+    m = MechArrays.from_mechanism(proto)
+    sol = [s for s in flexkin.ik(proto, (0.0, 0.0, np.radians(90))).solutions if s.stable][0]
+    x0 = np.concatenate([sol.zrod, sol.inputs])
+    for batch in (1, 200):
+        X0 = np.repeat(x0[None], batch, 0)
+        p0 = np.repeat(np.array([[0.0, 0.0, np.radians(90)]]), batch, 0)
+        p1 = p0 + np.array([0.01, 0.0, 0.0])
+        t = _median_time(lambda: continue_ik(m, X0, p0, p1, np.zeros(3)), rep)
+        rows.append((f"continuation step, batch of {batch}", f"{1e6 * t / batch:.0f} us / step", "prototype"))
+    t = _median_time(lambda: workspace(proto, np.radians(90), all_aspects=False), max(1, rep // 2))
+    ws = workspace(proto, np.radians(90), all_aspects=False)
+    rows.append(("workspace map 101 x 90, prototype theta=90 deg", f"{t:.1f} s",
+                 f"{ws.maps[0].area_cells} cells, {ws.steps} steps, {1e6 * t / max(ws.steps, 1):.0f} us/step"))
+
     print(f"flexkin {flexkin.__version__} benchmark — {os.cpu_count()} cores, median of {rep} runs")
     w = max(len(r[0]) for r in rows)
     for r in rows:
