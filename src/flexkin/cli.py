@@ -148,7 +148,25 @@ def _build_parser() -> argparse.ArgumentParser:
     wk.add_argument("--save", metavar="FILE", help="save the maps (.npz; one file per orientation, suffixed)")
     wk.add_argument("--json", action="store_true", help="print a JSON summary")
     wk.add_argument("--plot", metavar="FILE", help="figure like Fig. 17, one panel per orientation")
+    rp = sub.add_parser("reproduce", help="run the paper's whole analysis on the bundled examples; write a report")
+    rp.add_argument("--out", default="flexkin_report", help="output directory (default flexkin_report)")
+    rp.add_argument("--quick", action="store_true", help="coarse grids and sweeps (about 20 s)")
     return p
+
+
+def _cmd_reproduce(a) -> int:
+    from .reproduce import reproduce
+
+    try:
+        res = reproduce(a.out, quick=a.quick, progress=True)
+    except PermissionError as e:
+        raise CLIError(f"flexkin reproduce: cannot write to {a.out!r}: {e.strerror}") from None
+    print(f"report written to {res.report} ({len(res.figures)} figures, {res.elapsed:.0f} s)")
+    for row in res.table2:
+        print(f"  Table 2: theta = {row['theta_deg']:g} deg: rho = {row['flexkin_rho']} m (paper {row['paper_rho']} m)")
+    for row in res.table1:
+        print(f"  Table 1: paper theta = {row['paper_theta_deg']:g} deg: flexkin pose {row['flexkin_pose']}")
+    return 0
 
 
 def _workspace_task(args: tuple) -> Any:
@@ -389,7 +407,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         a = parser.parse_args(argv)
         handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics, "fk": _cmd_kinematics,
-                   "path": _cmd_path, "workspace": _cmd_workspace}[a.command]
+                   "path": _cmd_path, "workspace": _cmd_workspace, "reproduce": _cmd_reproduce}[a.command]
         return handler(a)
     except CLIError as e:
         print(str(e), file=sys.stderr)

@@ -93,7 +93,7 @@ def plot_parameter_space(mode: int = 1, quantity: str = "R", path: str | None = 
         Z, lab = t.y, "tip y/L"
     fig = new_figure(figsize=(10, 4.2), layout="constrained")
     a1, a2 = fig.subplots(1, 2)
-    m1 = a1.pcolormesh(np.degrees(PSI), K, Z, shading="auto", cmap="viridis")
+    m1 = a1.pcolormesh(np.degrees(PSI), K, Z, shading="gouraud", cmap="viridis")
     kmin = np.abs(np.cos(psi / 2))
     a1.plot(np.degrees(psi), kmin, "w--", lw=1)
     a1.plot(np.degrees(psi), -kmin, "w--", lw=1)
