@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .kinematics.continuation import SEAM_V, continue_ik, unknown_scale
-from .kinematics.ik import _as_load, _check_mode, ik
+from .kinematics.ik import _as_load, _check_budget, _check_mode, ik
 from .kinematics.jacobian import kinematic_jacobians
 from .kinematics.results import Solution
 from .kinematics.stability import mechanism_stability
@@ -226,8 +226,8 @@ def _continue_adaptive(m: MechArrays, x: NDArray, p0: NDArray, p1: NDArray, w: N
 
 
 def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray, Y: NDArray, theta: float,
-               w: NDArray, claimed: list[tuple[NDArray, NDArray]], progress: Callable[[int], None] | None
-               ) -> tuple[dict[str, NDArray], int, set[int]]:
+               w: NDArray, claimed: list[tuple[NDArray, NDArray]], progress: Callable[[int], None] | None,
+               deadline: float | None = None) -> tuple[dict[str, NDArray], int, set[int]]:
     """Wave propagation of one seed. Returns the map arrays, the number of continuation
     steps, and the indices of earlier maps that this one joins (same solution at a cell)."""
     ny, nx = len(Y), len(X)
@@ -260,6 +260,8 @@ def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray,
     front = [(j0, i0)]
     steps = 0
     while front:
+        if deadline is not None and time.perf_counter() > deadline:
+            break
         src, dst = [], []
         seen: set[tuple[int, int]] = set()
         for (j, i) in front:
@@ -336,7 +338,8 @@ def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray,
 
 def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load: ArrayLike | None = None,
               step: float | None = None, bounds: ArrayLike | None = None, max_mode: int = 2,
-              all_aspects: bool = True, progress: bool | Callable[[int], None] = False) -> Workspace:
+              all_aspects: bool = True, progress: bool | Callable[[int], None] = False,
+              time_budget: float | None = None) -> Workspace:
     """Constant-orientation workspace of ``mech`` at orientation ``theta`` (rad).
 
     Parameters
@@ -361,12 +364,16 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
     progress : bool or callable
         ``True`` shows a tqdm progress bar; a callable receives the number of continuation
         steps of each wave.
+    time_budget : float, optional
+        Seconds; when they run out the propagation stops and ``message`` says so (the maps
+        hold what was reached).
 
     Returns
     -------
     Workspace
     """
     t0 = time.perf_counter()
+    deadline = None if time_budget is None else t0 + _check_budget(time_budget)
     th = float(theta)
     if not np.isfinite(th):
         raise ValueError(f"theta must be finite, got {theta!r}")
@@ -423,7 +430,9 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
         if dup:
             seeds[dup[0]].append(k)
             continue
-        maps_k, n, joins = _propagate(m, x0, (j0, i0), X, Y, th, w, claimed, cb)
+        if deadline is not None and time.perf_counter() > deadline:
+            break
+        maps_k, n, joins = _propagate(m, x0, (j0, i0), X, Y, th, w, claimed, cb, deadline)
         total += n
         raw.append(maps_k)
         seeds.append([k])
@@ -444,5 +453,7 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
                                  tuple(sorted(set(s))), np.nan_to_num(sol[..., :6]), r["boundary_seam"]))
     # merged maps: a map joined by a later seed is reported within that later map's union
     maps.sort(key=lambda mp: -mp.area_cells)
+    msg = ("time budget exhausted: the maps hold what was reached"
+           if deadline is not None and time.perf_counter() > deadline else "")
     return Workspace(mech.name, kinds, th, tuple(map(float, w)), X, Y, (float(X[i0]), float(Y[j0])), tuple(maps),
-                     time.perf_counter() - t0, total, "")
+                     time.perf_counter() - t0, total, msg)

@@ -16,6 +16,8 @@ the curves cannot hide a solution near a segment end.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -61,7 +63,7 @@ class SegmentTree:
 
 
 def equilibrium_triples(p0s: list[NDArray], p1s: list[NDArray], target: NDArray[np.float64],
-                        max_nodes: int = 50_000_000, chunk: int = 100_000
+                        max_nodes: int = 50_000_000, chunk: int = 100_000, deadline: float | None = None
                         ) -> tuple[NDArray[np.int64], NDArray[np.float64], bool]:
     """Segment triples and parameters where ``sum_i w_i(s_i) = target``.
 
@@ -71,6 +73,7 @@ def equilibrium_triples(p0s: list[NDArray], p1s: list[NDArray], target: NDArray[
     target : (3,) the load wrench (scaled).
     max_nodes : budget of node triples examined; when it runs out the search stops and
         the result is flagged incomplete.
+    deadline : ``time.perf_counter()`` value after which the search stops (incomplete).
 
     Returns
     -------
@@ -88,7 +91,7 @@ def equilibrium_triples(p0s: list[NDArray], p1s: list[NDArray], target: NDArray[
     while stack:  # depth-first over chunks: bounded memory
         active = stack.pop()
         evaluated += len(active)
-        if evaluated > max_nodes:
+        if evaluated > max_nodes or (deadline is not None and time.perf_counter() > deadline):
             complete = False
             break
         lo = sum(trees[i].lo[active[:, i]] for i in range(3))

@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..numerics import batch_newton, solve_batch
 from ..rod.atlas_tree import get_atlas_tree
-from .ik import RESIDUAL_TOL, _as_load, _as_triple, _check_mode, finish_solutions, project_unknowns
+from .ik import RESIDUAL_TOL, _as_load, _as_triple, _check_budget, _check_mode, finish_solutions, project_unknowns
 from .results import KinematicsResult, Solution
 from .system import REVOLUTE, MechArrays, clamp_arrays, residual, rod_world
 
@@ -54,8 +54,8 @@ def _dist_ok(c, h, d, tol):
 
 def fk_candidates(m: MechArrays, inputs: NDArray, w: NDArray, max_mode: int,
                   max_nodes: int = 20_000_000, chunk: int = 200_000, stride: int = 1,
-                  eps_tip: float = 0.01, eps_force: float = 0.05, fallback: int = 20_000
-                  ) -> tuple[NDArray[np.float64], bool]:
+                  eps_tip: float = 0.01, eps_force: float = 0.05, fallback: int = 20_000,
+                  deadline: float | None = None) -> tuple[NDArray[np.float64], bool]:
     """Starting points (n, 9) = (zrod, pose) for the FK Newton, from the atlas B&B.
 
     Returns the starts and whether the search completed within ``max_nodes`` node
@@ -101,7 +101,7 @@ def fk_candidates(m: MechArrays, inputs: NDArray, w: NDArray, max_mode: int,
     while stack:  # depth-first over chunks keeps the working set bounded
         active = stack.pop()
         evaluated += len(active)
-        if evaluated > max_nodes:
+        if evaluated > max_nodes or (deadline is not None and time.perf_counter() > deadline):
             stack.append(active)
             break
         n = [active[:, i] for i in range(3)]
@@ -141,7 +141,8 @@ def fk_candidates(m: MechArrays, inputs: NDArray, w: NDArray, max_mode: int,
     starts = [np.zeros((0, 9))]
     if leaves:
         starts.append(_linearised_starts(m, tree, np.concatenate(leaves), A, alpha, L, w))
-    if stack:
+    timed_out = deadline is not None and time.perf_counter() > deadline
+    if stack and not timed_out:  # out of time: only what was resolved
         rest = np.concatenate(stack)
         if len(rest) > fallback:
             rest = rest[np.random.default_rng(0).choice(len(rest), fallback, replace=False)]
@@ -230,7 +231,7 @@ def fit_pose(m: MechArrays, tips: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *, stride: int = 4,
-       stable_only: bool = False) -> KinematicsResult:
+       stable_only: bool = False, time_budget: float | None = None) -> KinematicsResult:
     """All equilibrium poses of ``mech`` for actuator ``inputs`` under ``load`` (paper §5).
 
     Parameters
@@ -247,6 +248,9 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         Coarsening of the atlas cells used by the search (1 = finest, slowest).
     stable_only : bool
         Keep only the stable equilibria (default: all, stable and unstable).
+    time_budget : float, optional
+        Seconds for the global search; when it runs out, the candidates found so far are
+        refined and the result says ``complete = False``.
 
     Returns
     -------
@@ -266,15 +270,17 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     if msg:
         return KinematicsResult("fk", mech, tuple(float(v) for v in u), tuple(float(v) for v in w), max_mode, (),
                                 True, msg, time.perf_counter() - t0, diag)
-    x0, complete = fk_candidates(m, u, w, max_mode, stride=stride)
+    deadline = None if time_budget is None else t0 + _check_budget(time_budget)
+    x0, complete = fk_candidates(m, u, w, max_mode, stride=stride, deadline=deadline)
     diag["candidates"] = int(len(x0))
     diag["search_complete"] = complete
 
     sols = refine_fk(m, u, w, x0[:, :6], x0[:, 6:], max_mode, diag)
     msg = "" if sols else "no equilibrium pose found for these inputs and load"
     if not complete:
-        msg = ("search budget exhausted near a singular configuration: the solution list may be incomplete"
-               + ("" if sols else "; " + msg))
+        why = ("time budget exhausted" if deadline is not None and time.perf_counter() > deadline
+               else "search budget exhausted near a singular configuration")
+        msg = f"{why}: the solution list may be incomplete" + ("" if sols else "; " + msg)
     res = KinematicsResult("fk", mech, tuple(float(v) for v in u), tuple(float(v) for v in w), max_mode,
                            tuple(sols), complete, msg, time.perf_counter() - t0, diag)
     return res.select(stable_only=True) if stable_only else res

@@ -58,6 +58,17 @@ def project_unknowns(x: NDArray) -> NDArray:
     return x
 
 
+def _check_budget(budget: Any) -> float:
+    """A positive finite number of seconds, or a ValueError."""
+    try:
+        b = float(budget)
+    except (TypeError, ValueError):
+        raise ValueError(f"time_budget must be a number of seconds > 0, got {budget!r}") from None
+    if not (np.isfinite(b) and b > 0):
+        raise ValueError(f"time_budget must be a number of seconds > 0, got {budget!r}")
+    return b
+
+
 def _check_mode(max_mode: Any) -> int:
     if isinstance(max_mode, bool) or not isinstance(max_mode, (int, np.integer)) or not 1 <= max_mode <= 6:
         raise ValueError(f"max_mode must be an integer between 1 and 6, got {max_mode!r}")
@@ -108,7 +119,7 @@ def finish_solutions(m: MechArrays, z: NDArray, res_norm: NDArray, pose: NDArray
 
 
 def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *,
-       stable_only: bool = False) -> KinematicsResult:
+       stable_only: bool = False, time_budget: float | None = None) -> KinematicsResult:
     """All equilibria of ``mech`` at platform ``pose`` under ``load`` (paper §4).
 
     Parameters
@@ -122,6 +133,9 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         Largest d-mode of any rod (default 2, i.e. the 8 combinations of modes 1–2).
     stable_only : bool
         Keep only the stable equilibria (default: all, stable and unstable).
+    time_budget : float, optional
+        Seconds for the global search of step 2; when it runs out, the candidates found so
+        far are refined and the result says ``complete = False``.
 
     Returns
     -------
@@ -154,12 +168,15 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         p0s.append(cat(P0, (3,))); p1s.append(cat(P1, (3,)))
         zs.append((cat(Z0, (2,)), cat(Z1, (2,)))); us.append((cat(U0, ()), cat(U1, ())))
     target = w / wscale
-    seg, s, complete = equilibrium_triples(p0s, p1s, target)
+    deadline = None if time_budget is None else t0 + _check_budget(time_budget)
+    seg, s, complete = equilibrium_triples(p0s, p1s, target, deadline=deadline)
     diag["candidates"] = int(len(seg))
     diag["search_complete"] = complete
     if len(seg) == 0:
+        msg = _empty_message(curves) if complete else \
+            "search stopped early (time or node budget) before any candidate was found"
         return KinematicsResult("ik", mech, tuple(pose), tuple(w), max_mode, (), complete,
-                                _empty_message(curves), time.perf_counter() - t0, diag, curves)
+                                msg, time.perf_counter() - t0, diag, curves)
     zrod = np.empty((len(seg), 6))
     inputs = np.empty((len(seg), 3))
     for i in range(3):
@@ -171,6 +188,8 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     # ---- step 3: Newton on the full equations ------------------------------------------
     sols = refine_ik(m, pose, w, zrod, inputs, max_mode, diag)
     msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
+    if not complete:
+        msg = "search stopped early (time or node budget): the solution list may be incomplete"
     res = KinematicsResult("ik", mech, tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode,
                            tuple(sols), complete, msg, time.perf_counter() - t0, diag, curves)
     return res.select(stable_only=True) if stable_only else res

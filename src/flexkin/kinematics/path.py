@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..rod.closed_form import mode_of
 from .continuation import continue_ik
-from .ik import _as_load, _as_triple, _check_mode, ik
+from .ik import _as_load, _as_triple, _check_budget, _check_mode, ik
 from .jacobian import kinematic_jacobians
 from .results import Solution
 from .stability import mechanism_stability
@@ -149,7 +149,8 @@ def _pose_at(a: NDArray, b: NDArray, t: float) -> NDArray:
 
 
 def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: ArrayLike | None = None,
-                solution: int | Solution | None = None, max_mode: int = 2) -> PathResult:
+                solution: int | Solution | None = None, max_mode: int = 2,
+                time_budget: float | None = None) -> PathResult:
     """Follow one IK solution from pose ``start`` to pose ``end`` (m, m, rad).
 
     Parameters
@@ -166,6 +167,9 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
         :class:`Solution`.  Default: the first stable one (else the first one).
     max_mode : int
         Passed to the IK at ``start`` when ``solution`` is not a :class:`Solution`.
+    time_budget : float, optional
+        Seconds; when they run out the samples reached so far are returned with
+        ``complete = False`` and a message.
 
     Returns
     -------
@@ -174,6 +178,7 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
         is ``"continuation_failed"``).
     """
     t0 = time.perf_counter()
+    deadline = None if time_budget is None else t0 + _check_budget(time_budget)
     a = _as_triple(start, "start pose (x, y, theta)")
     b = _as_triple(end, "end pose (x, y, theta)")
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 1 <= steps <= 100000:
@@ -199,7 +204,11 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
     failed_at = None
     bridged: list[PathEvent] = []
     j = 0
+    timed_out = False
     while j < steps:
+        if deadline is not None and time.perf_counter() > deadline:
+            timed_out = True
+            break
         j += 1
         if j / steps <= t + 1e-15:
             continue
@@ -247,9 +256,11 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
                                 f"the branch ends near t = {failed_at:.4f} (IK singularity: no nearby solution "
                                 f"beyond it)"))
         msg = f"continuation failed near t = {failed_at:.4f}: IK singularity (the solution branch folds back)"
+    if timed_out:
+        msg = f"time budget exhausted at t = {T[-1]:.4f}"
     return PathResult(mech, tuple(map(float, a)), tuple(map(float, b)), tuple(map(float, w)), T, P, X[:, 6:],
                       modes, st.stable, st.margin, jac.det_ik, jac.det_fk, jac.cond, jac.sing_ik, jac.sing_fk,
-                      tuple(events), failed_at is None, msg, sol, time.perf_counter() - t0)
+                      tuple(events), failed_at is None and not timed_out, msg, sol, time.perf_counter() - t0)
 
 
 def _near_seam(x: NDArray) -> bool:

@@ -17,6 +17,21 @@ and ignored for length legs.  ``[limits] max_strain`` requires every leg's ``rad
 
 Angles (``angle``, and ``range`` of revolute legs) are degrees in the file and radians in
 the returned :class:`~flexkin.mechanism.model.Mechanism`.
+
+Unknown keys are errors in every table (never silently ignored), with a ``did you mean``
+hint for likely misspellings (:func:`suggest_key`).
+
+Supported ranges (beyond them squares and fourth powers of the values would overflow or
+underflow in double precision): rod ``length`` and ``radius`` in
+:data:`~flexkin.mechanism.model.LENGTH_LIMITS` (1e-12 .. 1e12 m), ``E`` and ``EI`` (also the
+``EI`` computed from ``E`` and ``radius``) in
+:data:`~flexkin.mechanism.model.STIFFNESS_LIMITS` (1e-30 .. 1e30), coordinates (origins,
+attach points, strokes of prismatic and length legs) within +-1e12 m, and a platform of at
+least 1e-12 m.
+
+Files are read as UTF-8 (a leading byte-order mark is accepted) and at most
+:data:`MAX_FILE_BYTES` long; unreadable, binary, oversized and malformed files are
+MechanismErrors too.
 """
 
 from __future__ import annotations

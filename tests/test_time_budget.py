@@ -1,0 +1,46 @@
+"""Every solver takes a time budget and returns what it has, flagged incomplete, instead of hanging."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+import flexkin
+from flexkin.kinematics.path import follow_path
+from flexkin.workspace import workspace
+
+
+@pytest.fixture(scope="module")
+def rfr(examples_dir):
+    return flexkin.load_mechanism(examples_dir / "unit_3rfr.toml")
+
+
+def test_fk_time_budget(rfr):
+    u = flexkin.ik(rfr, (0.05, 0.02, np.radians(20))).solutions[0].inputs
+    t = time.perf_counter()
+    r = flexkin.fk(rfr, u, time_budget=0.2)
+    assert time.perf_counter() - t < 5.0
+    assert r.complete is False and "time budget" in r.message
+    assert all(s.residual <= 1e-10 for s in r.solutions)  # what it returns is still refined
+
+
+def test_ik_time_budget(rfr):
+    r = flexkin.ik(rfr, (0.05, 0.02, np.radians(20)), time_budget=1e-6)
+    assert r.complete is False and r.message
+    full = flexkin.ik(rfr, (0.05, 0.02, np.radians(20)), time_budget=60)
+    assert full.complete and len(full) == 8
+
+
+def test_path_and_workspace_time_budget(rfr):
+    p = follow_path(rfr, (0, 0, np.radians(20)), (0.2, 0, np.radians(20)), steps=2000, time_budget=0.5)
+    assert not p.complete and "time budget" in p.message and 1 <= len(p.t) < 2001
+    w = workspace(rfr, np.radians(20), step=0.01, bounds=(-0.6, 0.6, -0.6, 0.6), all_aspects=False, time_budget=0.5)
+    assert "time budget" in w.message
+
+
+@pytest.mark.parametrize("bad", [0, -1, float("nan"), "soon"])
+def test_bad_budget(rfr, bad):
+    with pytest.raises(ValueError, match="time_budget"):
+        flexkin.ik(rfr, (0, 0, 0), time_budget=bad)
