@@ -201,8 +201,9 @@ def reproduce(out: str | Path = "flexkin_report", quick: bool = False,
     md += ["## 5. Full forward kinematics of the 3-R̲FR (Fig. 16)", "",
            "Inputs (deg): " + ", ".join(f"{np.degrees(v):.3f}" for v in u)
            + f" (those of IK solution 1 above). {len(res)} equilibria with d-modes ≤ 2, "
-           f"{sum(1 for s in res.solutions if s.stable)} stable; {len(st111)} stable with d-modes 111 "
-           "(the paper finds 4 for its case).", "",
+           f"{sum(1 for s in res.solutions if s.stable)} stable; {len(st111)} stable with d-modes 111, of which "
+           f"{sum(f.feasible for f in st111.feasibility())} feasible (no loop, no collision; the paper finds 4 "
+           "stable mode-111 solutions for its differently sized case).", "",
            "per d-mode combination: " + ", ".join(f"{k}: {v}" for k, v in sorted(counts["FK 3-RFR"].items())), "",
            "```", res.table(), "```", "", f"![Fig. 16]({f.name})", ""]
 
