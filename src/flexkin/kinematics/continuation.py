@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from .ik import RESIDUAL_TOL
 from .jacobian import system_derivatives
+from ..rod.closed_form import SEAM_OFFSET, chart_to_seam, is_seam, seam_to_chart
 from .system import REVOLUTE, MechArrays, project_zrod, residual, rod_world
 
 __all__ = ["continue_ik", "unknown_scale"]
@@ -60,10 +61,8 @@ def continue_ik(m: MechArrays, x: NDArray, pose0: NDArray, pose1: NDArray, load:
     Returns the new unknowns and a success flag per solution (failed rows are returned
     unchanged).
     """
-    x = np.atleast_2d(np.asarray(x, dtype=float))
+    x = to_working_charts(np.atleast_2d(np.asarray(x, dtype=float)))
     pose0, pose1 = np.atleast_2d(pose0), np.atleast_2d(pose1)
-    n = len(x)
-    scale = unknown_scale(m)
     A, Gx = _A_ik(m, x, pose0)
     dx_pred, ok = _solve(A, -np.einsum("nij,nj->ni", Gx, pose1 - pose0))
     pred = x + dx_pred
@@ -111,7 +110,7 @@ def continue_ik(m: MechArrays, x: NDArray, pose0: NDArray, pose1: NDArray, load:
     # physical terms (inputs and tip forces: the chart is very nonlinear near its seam)
     success = ok & (norm <= RESIDUAL_TOL) & _close(m, x, pred, y)
     out = np.where(success[:, None], y, x)
-    seam = ~success & ok & np.any(np.abs(x[:, 0:6:2]) > SEAM_V, axis=1)
+    seam = ~success & ok & np.any((np.abs(x[:, 0:6:2]) > SEAM_V) & ~is_seam(x[:, 1:6:2]), axis=1)
     if np.any(seam):
         idx = np.flatnonzero(seam)
         xs, okk = _across_seam(m, x[idx], pred[idx], pose1[idx], load, newton_iter + 4)
@@ -122,6 +121,32 @@ def continue_ik(m: MechArrays, x: NDArray, pose0: NDArray, pose1: NDArray, load:
 
 #: a rod with |v| above this is near the seam of the chart (straight under tension, |k| -> 1)
 SEAM_V = 4.0
+#: rods switch to the seam chart above this |v| (and back below SEAM_OUT): hysteresis
+SEAM_IN, SEAM_OUT = 3.0, 2.5
+
+
+def to_working_charts(x: NDArray) -> NDArray:
+    """Rods of IK unknowns ``x`` (n, >= 6) in the chart best for continuation.
+
+    Mode-1 rods close to straight under tension (``|v| > SEAM_IN``, ``0 < phis < pi/2``) are
+    moved to the seam chart (:func:`~flexkin.rod.closed_form.tip_seam`), where passing
+    through the straight rod is regular; seam-chart rods far from it (``|v| < SEAM_OUT``) go
+    back to the solvers' chart.
+    """
+    x = np.array(x, dtype=float)
+    for i in range(3):
+        z0, z1 = x[:, 2 * i], x[:, 2 * i + 1]
+        seam = is_seam(z1)
+        go = ~seam & (np.abs(z0) > SEAM_IN) & (z1 > 1e-6) & (z1 < 0.5 * np.pi - 1e-12)
+        if np.any(go):
+            ps, chi = chart_to_seam(z0[go], z1[go])
+            x[go, 2 * i], x[go, 2 * i + 1] = ps, chi + SEAM_OFFSET
+        if np.any(seam):
+            v, ph = seam_to_chart(z0[seam], z1[seam] - SEAM_OFFSET)
+            back = np.abs(v) < SEAM_OUT
+            idx = np.flatnonzero(seam)[back]
+            x[idx, 2 * i], x[idx, 2 * i + 1] = v[back], ph[back]
+    return x
 
 
 def _physical(m: MechArrays, x: NDArray) -> NDArray:

@@ -27,7 +27,7 @@ from .jacobian import kinematic_jacobians
 from .results import KinematicsResult, Solution
 from .stability import mechanism_stability
 from ..rod.atlas import in_scope
-from ..rod.closed_form import tip_chart
+from ..rod.closed_form import tip_any
 from .system import REVOLUTE, MechArrays, clamp_arrays, platform_points, project_zrod, residual, rod_states, rod_world
 
 __all__ = ["ik", "solve_ik", "RESIDUAL_TOL"]
@@ -94,7 +94,7 @@ def finish_solutions(m: MechArrays, z: NDArray, res_norm: NDArray, pose: NDArray
     # identity of a solution: physical, chart-independent quantities, computed in one batch
     _, force = rod_world(m, z, inputs)
     _, _, L = clamp_arrays(m, inputs)
-    t = tip_chart(z[:, 0::2], z[:, 1::2])
+    t = tip_any(z[:, 0::2], z[:, 1::2])
     m0 = t.m0 * m.EI[None] / L
     keys = np.concatenate([force.reshape(-1, 6) / m.F_ref, m0 / (m.F_ref * m.L_ref),
                            pose / np.array([m.L_ref, m.L_ref, 1.0]), inputs / key_scale], axis=1)

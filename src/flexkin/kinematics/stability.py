@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from ..rod.closed_form import tangent_angles, tip_chart
+from ..rod.closed_form import standard_chart, tangent_angles, tip_any, tip_chart
 from ..rod.state import RodState
 from .system import MechArrays, clamp_arrays, platform_points, rod_world
 
@@ -117,7 +117,7 @@ def _chart_jacobians(v: ArrayLike, phis: ArrayLike, step: float) -> tuple[NDArra
     phis = np.atleast_1d(np.asarray(phis, dtype=float))
     cols_p, cols_f = [], []
     for dv, dp in ((step, 0.0), (0.0, step)):
-        a, b = tip_chart(v + dv, phis + dp), tip_chart(v - dv, phis - dp)
+        a, b = tip_any(v + dv, phis + dp), tip_any(v - dv, phis - dp)
         cols_p.append(np.stack([a.x - b.x, a.y - b.y], -1) / (2 * step))
         cols_f.append(np.stack([a.fx - b.fx, a.fy - b.fy], -1) / (2 * step))
     return np.stack(cols_p, -1), np.stack(cols_f, -1)
@@ -131,6 +131,7 @@ def _neg_count(A: NDArray[np.float64]) -> NDArray[np.int64]:
 
 
 def _theta_nodes(v: NDArray, phis: NDArray, steps: int) -> NDArray[np.float64]:
+    v, phis = standard_chart(v, phis)
     return tangent_angles(v, phis, np.linspace(0.0, 1.0, 2 * steps + 1))
 
 
@@ -147,7 +148,7 @@ def rod_pinned_index(v: ArrayLike, phis: ArrayLike, steps: int = JACOBI_STEPS) -
     v = np.atleast_1d(np.asarray(v, dtype=float))
     phis = np.atleast_1d(np.asarray(phis, dtype=float))
     theta = _theta_nodes(v, phis, steps)
-    t = tip_chart(v, phis)
+    t = tip_any(v, phis)
     free = free_index(theta, np.stack([t.fx, t.fy], -1))
     return free - _neg_count(rod_compliance(v, phis))
 

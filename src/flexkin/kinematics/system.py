@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..rod.closed_form import tip_chart
+from ..rod.closed_form import SEAM_OFFSET, is_seam, tip_any
 from ..rod.state import RodState, project_chart
 
 __all__ = ["MechArrays", "PRISMATIC", "REVOLUTE", "LENGTH", "clamp_arrays", "residual", "rod_states",
@@ -93,7 +93,7 @@ def platform_points(m: MechArrays, pose: NDArray[np.float64]) -> NDArray[np.floa
 def rod_world(m: MechArrays, zrod: NDArray[np.float64], inputs: NDArray[np.float64]):
     """Tips (n, 3, 2) and tip forces on the rods (n, 3, 2), world frame."""
     A, alpha, L = clamp_arrays(m, inputs)
-    t = tip_chart(zrod[:, 0::2], zrod[:, 1::2])
+    t = tip_any(zrod[:, 0::2], zrod[:, 1::2])
     ca, sa = np.cos(alpha), np.sin(alpha)
     tip = A + L[..., None] * np.stack([ca * t.x - sa * t.y, sa * t.x + ca * t.y], -1)
     scale = m.EI[None] / L**2
@@ -115,10 +115,16 @@ def residual(m: MechArrays, zrod: NDArray, pose: NDArray, inputs: NDArray, load:
 
 
 def project_zrod(zrod: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Keep every rod's chart coordinates admissible (see :func:`project_chart`)."""
+    """Keep every rod's chart coordinates admissible (see :func:`project_chart`); rods in the
+    seam chart keep ``|psi_s| < pi`` and ``0 < chi < pi/2``."""
     out = np.array(zrod, dtype=float)
-    ku, ph = project_chart(out[:, 0::2], out[:, 1::2])
-    out[:, 0::2], out[:, 1::2] = ku, ph
+    z0, z1 = out[:, 0::2], out[:, 1::2]
+    seam = is_seam(z1)
+    ku, ph = project_chart(np.where(seam, 0.0, z0), np.where(seam, 0.0, z1))
+    ps = np.clip(z0, -np.pi + 1e-9, np.pi - 1e-9)
+    chi = np.clip(z1 - SEAM_OFFSET, 1e-12, 0.5 * np.pi - 1e-9) + SEAM_OFFSET
+    out[:, 0::2] = np.where(seam, ps, ku)
+    out[:, 1::2] = np.where(seam, chi, ph)
     return out
 
 

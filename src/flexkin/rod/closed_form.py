@@ -377,3 +377,123 @@ def tangent_angles(v: ArrayLike, phis: ArrayLike, s: ArrayLike) -> NDArray[np.fl
     theta = psi + 2.0 * np.arctan2(-delta, ku * np.sin(phi))
     theta = theta - theta[:, :1] if s[0, 0] == 0.0 else theta
     return np.where(Phi > 0.0, theta, 0.0)
+
+
+# ---- the seam chart: rods near straight under tension -----------------------------------------------
+#
+# A mode-1 rod with phis in (0, pi/2) can also be written with the signed direction psi_s in
+# (-pi, pi) of its tip force (measured from the clamp axis) and the complementary amplitude
+# chi in (0, pi/2) of phis, tan(chi) = tan(pi/2 - phis)/k' (Jacobi: F(phis) + F(chi) = K when
+# tan(phis) tan(chi) = 1/k').  Then
+#
+#     k' = sin(|psi_s|/2) cos(chi) / sqrt(cos^2 chi + cos^2(psi_s/2) sin^2 chi),
+#     tan(pi/2 - phis) = sin(|psi_s|/2) sin(chi) / sqrt(cos^2 chi + cos^2(psi_s/2) sin^2 chi),
+#     lambda L = K - F(phis) = F(chi),    E - E(phis) = E(chi) - k^2 sin(phis) sin(chi)  (Legendre),
+#
+# so nothing cancels as k' -> 0.  The straight rod under tension (psi_s = 0, the seam of the
+# unified chart where |k| = 1) is an ordinary point: the rod and its mirror image (psi_s -> -psi_s)
+# are neighbours.  In arrays of chart coordinates a seam-chart rod is stored as
+# (psi_s, chi + SEAM_OFFSET).
+
+#: offset marking seam-chart coordinates in the second slot of a rod's chart pair
+SEAM_OFFSET = 10.0
+
+
+def is_seam(z1: ArrayLike) -> NDArray[np.bool_]:
+    """Whether chart pairs ``(z0, z1)`` are stored in the seam chart."""
+    return np.asarray(z1, dtype=float) > 0.5 * SEAM_OFFSET
+
+
+def _seam_params(psi_s: NDArray, chi: NDArray):
+    h = 0.5 * np.abs(psi_s)
+    sh, ch = np.sin(h), np.cos(h)
+    sc, cc = np.sin(chi), np.cos(chi)
+    den = np.sqrt(cc * cc + (ch * sc) ** 2)
+    kp = sh * cc / den
+    eps = np.arctan2(sh * sc, den)  # pi/2 - phis
+    sgn = np.where(psi_s >= 0.0, 1.0, -1.0)
+    ku = sgn * np.sqrt(np.maximum(1.0 - kp * kp, 0.0))
+    return sh, ch, kp, eps, ku, sgn
+
+
+def tip_seam(psi_s: ArrayLike, chi: ArrayLike) -> RodTipArrays:
+    """:func:`tip_unit` in the seam chart (see above): unit rod, local frame."""
+    psi_s = np.asarray(psi_s, dtype=float)
+    chi = np.asarray(chi, dtype=float)
+    sh, ch, kp, eps, ku, sgn = _seam_params(psi_s, chi)
+    m = ku * ku
+    kp2 = kp * kp
+    s, c = np.sin(chi), np.cos(chi)
+    d2 = c * c + kp2 * s * s
+    rf = elliprf(c * c, d2, 1.0)
+    Phi = s * rf                                                          # F(chi | m)
+    Echi = s * rf - (m / 3.0) * s ** 3 * elliprd(c * c, d2, 1.0)          # E(chi | m)
+    DE = Echi - m * np.cos(eps) * s
+    cpsi2 = sgn * ch                    # cos(psi/2) with psi in [0, 2 pi]
+    cpsi, spsi = 2.0 * cpsi2 * cpsi2 - 1.0, 2.0 * cpsi2 * sh
+    cph = np.sin(eps)                   # cos(phis)
+    G = 2.0 * DE - Phi
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = -(G * cpsi - 2.0 * ku * spsi * cph) / Phi
+        y = -(G * spsi + 2.0 * ku * cpsi * cph) / Phi
+    psi = np.where(psi_s >= 0.0, psi_s, 2.0 * np.pi + psi_s)
+    theta = psi + 2.0 * np.arctan2(-kp, ku)
+    m0 = 2.0 * ku * Phi * cph
+    energy = 2.0 * Phi * (DE - kp2 * Phi)
+    unloaded = Phi <= 0.0
+    if np.any(unloaded):
+        x = np.where(unloaded, 1.0, x)
+        y = np.where(unloaded, 0.0, y)
+        theta = np.where(unloaded, 0.0, theta)
+    return RodTipArrays(x, y, theta, Phi * Phi, psi, m0, energy, Phi)
+
+
+def seam_to_chart(psi_s: ArrayLike, chi: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Seam chart -> solvers' chart ``(v, phis)`` (``|v|`` capped at 40)."""
+    psi_s = np.asarray(psi_s, dtype=float)
+    chi = np.asarray(chi, dtype=float)
+    _, _, kp, eps, _, sgn = _seam_params(psi_s, chi)
+    with np.errstate(divide="ignore"):
+        v = sgn * np.minimum(np.arccosh(np.minimum(1.0 / np.maximum(kp, 1e-300), 1e300)), 40.0)
+    return v, HALF_PI - eps
+
+
+def chart_to_seam(v: ArrayLike, phis: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Solvers' chart -> seam chart, for mode-1 rods with ``0 < phis < pi/2``."""
+    v = np.asarray(v, dtype=float)
+    phis = np.asarray(phis, dtype=float)
+    kp = 1.0 / np.cosh(v)
+    ku = np.tanh(v)
+    eps = HALF_PI - phis
+    # 1 - |c| with c = ku sin(phis), without cancellation
+    one_minus_c = 2.0 / (np.exp(2.0 * np.abs(v)) + 1.0) + np.abs(ku) * 2.0 * np.sin(0.5 * eps) ** 2
+    half = 2.0 * np.arcsin(np.sqrt(np.clip(0.5 * one_minus_c, 0.0, 1.0)))  # psi/2 for |c|
+    psi_s = np.where(ku >= 0.0, 2.0 * half, -2.0 * half)
+    chi = np.arctan2(np.sin(eps), kp * np.cos(eps))
+    return psi_s, chi
+
+
+def tip_any(z0: ArrayLike, z1: ArrayLike) -> RodTipArrays:
+    """Tip quantities for chart pairs in either chart (:func:`tip_chart` or :func:`tip_seam`)."""
+    z0 = np.asarray(z0, dtype=float)
+    z1 = np.asarray(z1, dtype=float)
+    seam = is_seam(z1)
+    if not np.any(seam):
+        return tip_chart(z0, z1)
+    if np.all(seam):
+        return tip_seam(z0, z1 - SEAM_OFFSET)
+    a = tip_chart(np.where(seam, 0.0, z0), np.where(seam, 0.0, z1))
+    b = tip_seam(np.where(seam, z0, 0.0), np.where(seam, z1 - SEAM_OFFSET, 0.5))
+    pick = [np.where(seam, getattr(b, k), getattr(a, k)) for k in ("x", "y", "theta", "R", "psi", "m0", "energy", "Phi")]
+    return RodTipArrays(*pick)
+
+
+def standard_chart(z0: ArrayLike, z1: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Chart pairs in the solvers' chart ``(v, phis)`` whatever chart they are stored in."""
+    z0 = np.asarray(z0, dtype=float)
+    z1 = np.asarray(z1, dtype=float)
+    seam = is_seam(z1)
+    if not np.any(seam):
+        return z0, z1
+    v, ph = seam_to_chart(np.where(seam, z0, 0.0), np.where(seam, z1 - SEAM_OFFSET, 0.5))
+    return np.where(seam, v, z0), np.where(seam, ph, z1)

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .closed_form import HALF_PI, mode_of, rod_shape, tip_chart, to_paper
+from .closed_form import HALF_PI, mode_of, rod_shape, standard_chart, tip_any, tip_chart, to_paper
 
 __all__ = ["RodState", "project_chart", "rot"]
 
@@ -86,9 +86,11 @@ class RodState:
     def from_chart(cls, v: float, phis: float, length: float, EI: float,
                    clamp: NDArray[np.float64] | tuple[float, float] = (0.0, 0.0),
                    clamp_angle: float = 0.0) -> "RodState":
-        """Build the state from chart coordinates ``(v, phis)`` (``ku = tanh v``) and the clamp."""
+        """Build the state from chart coordinates ``(v, phis)`` (``ku = tanh v``) and the clamp
+        (pairs stored in the seam chart are converted, see :func:`~flexkin.rod.closed_form.tip_seam`)."""
+        tu = tip_any(v, phis)
+        v, phis = (float(a) for a in standard_chart(v, phis))
         ku = float(np.tanh(v))
-        tu = tip_chart(v, phis)
         t = _Scaled(tu, length, EI)
         k, psi, q = to_paper(ku, phis)
         Rm = rot(clamp_angle)
