@@ -100,7 +100,9 @@ def atlas_starts(target: NDArray[np.float64], max_mode: int, tol: float = 0.02) 
         if np.any(inside):
             uu, vv = np.clip(u[inside], 0, 1), np.clip(v[inside], 0, 1)
             s = uu + vv
-            uu, vv = np.where(s > 1, uu / s, uu), np.where(s > 1, vv / s, vv)
+            big = s > 1
+            uu = np.divide(uu, s, out=uu.copy(), where=big)
+            vv = np.divide(vv, s, out=vv.copy(), where=big)
             starts.append(ca[inside] + uu[:, None] * (cb[inside] - ca[inside]) + vv[:, None] * (cc[inside] - ca[inside]))
     if not starts:
         return np.zeros((0, 2))
@@ -184,6 +186,13 @@ def solve_rod(
             f"tip is {dist * length:.6g} m from the clamp, beyond the rod length {length:.6g} m"),
             elapsed=time.perf_counter() - t0, **base)
 
+    if dist >= 1.0 - 1e-12 and abs(float(np.arctan2(local[1], local[0]))) < 1e-9:
+        # at full reach along the clamp axis only the straight rod fits, and being
+        # inextensible it carries any axial force: a continuum; the unloaded one is reported
+        st = RodState.from_chart(0.0, np.pi / 2, length, EI, clamp, clamp_angle)
+        return RodInverseResult((st,), (float(np.hypot(*(np.array(st.tip) - tip))),), message=(
+            "tip at full reach on the clamp axis: the straight rod carries any axial force; the unloaded "
+            "one is reported"), elapsed=time.perf_counter() - t0, **base)
     starts = atlas_starts(local, max_mode)
     res = refine_rod(starts, local)
     ok = res.converged & (mode_of(res.z[:, 1]) <= max_mode) & in_scope(res.z[:, :1])
@@ -191,6 +200,11 @@ def solve_rod(
     order = np.lexsort((z[:, 1], z[:, 0]))
     z = z[order][unique_rows(z[order], 1e-7)]
     states = [RodState.from_chart(k, p, length, EI, clamp, clamp_angle) for k, p in z]
+    # one equilibrium may have several chart points (the unloaded straight rod is the pole of
+    # the chart): keep one per physical state (tip force and base moment)
+    fs, ms = EI / length**2, EI / length
+    phys = np.array([[st.tip_force[0] / fs, st.tip_force[1] / fs, st.base_moment / ms] for st in states]).reshape(-1, 3)
+    states = [states[i] for i in unique_rows(phys, 1e-7)]
     resid = [float(np.hypot(s.tip[0] - tip[0], s.tip[1] - tip[1])) for s in states]
     pairs = sorted(zip(states, resid), key=lambda sr: (sr[0].mode, sr[0].energy, sr[0].k))
     msg = "" if pairs else f"no equilibrium with d-mode <= {max_mode} reaches the tip point"
