@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import re
 import sys
 from typing import Any, Sequence
 
@@ -25,6 +27,11 @@ class CLIError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        # negative numbers in exponent notation (-1e-3) are values, not options
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
     def error(self, message: str) -> None:  # argparse prints usage + message, exit 2
         self.print_usage(sys.stderr)
         raise CLIError(f"{self.prog}: {message}")
@@ -302,12 +309,27 @@ def _cmd_show(a) -> int:
 
 
 def _rod_EI(a) -> float:
+    from .mechanism.model import LENGTH_LIMITS, STIFFNESS_LIMITS
+
+    if a.length is not None and not LENGTH_LIMITS[0] <= a.length <= LENGTH_LIMITS[1]:
+        raise CLIError(f"flexkin rod: --length {a.length:g} is outside the supported range "
+                       f"[{LENGTH_LIMITS[0]:g}, {LENGTH_LIMITS[1]:g}] m")
     if a.EI is not None:
         if a.E is not None or a.radius is not None:
             raise CLIError("flexkin rod: give either --EI or --E with --radius, not both")
+        if not STIFFNESS_LIMITS[0] <= a.EI <= STIFFNESS_LIMITS[1]:
+            raise CLIError(f"flexkin rod: --EI {a.EI:g} is outside the supported range "
+                           f"[{STIFFNESS_LIMITS[0]:g}, {STIFFNESS_LIMITS[1]:g}] N m^2")
         return a.EI
     if a.E is not None and a.radius is not None:
-        return a.E * math.pi * a.radius**4 / 4.0
+        try:
+            EI = a.E * math.pi * a.radius**4 / 4.0
+        except OverflowError:
+            EI = math.inf
+        if not STIFFNESS_LIMITS[0] <= EI <= STIFFNESS_LIMITS[1]:
+            raise CLIError(f"flexkin rod: --E {a.E:g} with --radius {a.radius:g} gives EI = E pi r^4/4 = {EI:g}, "
+                           f"outside the supported range [{STIFFNESS_LIMITS[0]:g}, {STIFFNESS_LIMITS[1]:g}] N m^2")
+        return EI
     if a.sweep and a.E is None and a.radius is None:
         from .rod.sweep import FIG19
 
@@ -398,6 +420,29 @@ def _cmd_kinematics(a) -> int:
     return 0
 
 
+_FIGURE_FORMATS = ("png", "pdf", "svg", "svgz", "jpg", "jpeg", "eps", "ps", "tif", "tiff", "webp", "pgf")
+
+
+def _check_outputs(a) -> None:
+    """Figure and data output paths are writable files of a known format, before any work."""
+    for opt, formats in (("plot", _FIGURE_FORMATS), ("curves", _FIGURE_FORMATS), ("save", ("npz",))):
+        path = getattr(a, opt, None)
+        if not path:
+            continue
+        flag = "--" + opt
+        if os.path.isdir(path):
+            raise CLIError(f"flexkin: {flag} {path!r} is a directory; give a file name")
+        ext = os.path.splitext(path)[1].lower().lstrip(".")
+        if ext not in formats:
+            raise CLIError(f"flexkin: {flag} {path!r}: unknown file type {('.' + ext) if ext else '(no extension)'}; "
+                           f"use one of {', '.join('.' + f for f in formats)}")
+        parent = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(parent):
+            raise CLIError(f"flexkin: {flag} {path!r}: the directory {parent!r} does not exist")
+        if not os.access(parent, os.W_OK):
+            raise CLIError(f"flexkin: {flag} {path!r}: the directory {parent!r} is not writable")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``flexkin`` command."""
     import matplotlib
@@ -406,6 +451,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _build_parser()
     try:
         a = parser.parse_args(argv)
+        _check_outputs(a)
         handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics, "fk": _cmd_kinematics,
                    "path": _cmd_path, "workspace": _cmd_workspace, "reproduce": _cmd_reproduce}[a.command]
         return handler(a)

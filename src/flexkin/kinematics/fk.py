@@ -277,6 +277,9 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
 
     sols = refine_fk(m, u, w, x0[:, :6], x0[:, 6:], max_mode, diag)
     msg = "" if sols else "no equilibrium pose found for these inputs and load"
+    if diag.get("continuum"):
+        msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
+               "the least loaded one is reported")
     if not complete:
         why = ("time budget exhausted" if deadline is not None and time.perf_counter() > deadline
                else "search budget exhausted near a singular configuration")
@@ -303,7 +306,7 @@ def refine_fk(m: MechArrays, u: NDArray, w: NDArray, zrod: NDArray, pose: NDArra
     pose[:, 2] = (pose[:, 2] + np.pi) % (2 * np.pi) - np.pi
     key_scale = np.array([m.L_ref if k != REVOLUTE else 1.0 for k in m.kind])
     return finish_solutions(m, x[:, :6], res.residual[good], pose, np.broadcast_to(u, (len(x), 3)),
-                            max_mode, key_scale)
+                            max_mode, key_scale, diag)
 
 
 def _assembly_obstruction(m: MechArrays, u: NDArray) -> str:

@@ -76,7 +76,7 @@ def _check_mode(max_mode: Any) -> int:
 
 
 def finish_solutions(m: MechArrays, z: NDArray, res_norm: NDArray, pose: NDArray, inputs: NDArray,
-                     max_mode: int, key_scale: NDArray) -> list[Solution]:
+                     max_mode: int, key_scale: NDArray, diag: dict[str, Any] | None = None) -> list[Solution]:
     """Filter converged candidates by d-mode, de-duplicate, build :class:`Solution` objects.
 
     Two candidates are the same equilibrium when their rods' tip forces and base moments,
@@ -103,6 +103,19 @@ def finish_solutions(m: MechArrays, z: NDArray, res_norm: NDArray, pose: NDArray
     for i in order:
         if not chosen or np.min(np.max(np.abs(keys[chosen] - keys[i]), axis=1)) > 1e-6:
             chosen.append(int(i))
+    # a continuum: the same geometry (pose, inputs, rod tip angles) carrying different forces
+    # happens only where straight rods take axial force freely (a singular configuration);
+    # one representative, the least loaded, is kept
+    geo = np.concatenate([pose / np.array([m.L_ref, m.L_ref, 1.0]), inputs / key_scale,
+                          np.cos(t.theta), np.sin(t.theta)], axis=1)[chosen]
+    fmag = np.sum(np.abs(force.reshape(-1, 6)), axis=1)[chosen]
+    keep: list[int] = []
+    for a in np.argsort(fmag, kind="stable"):
+        if not keep or np.min(np.max(np.abs(geo[keep] - geo[a]), axis=1)) > 1e-8:
+            keep.append(int(a))
+    if diag is not None and len(keep) < len(chosen):
+        diag["continuum"] = len(chosen) - len(keep) + 1
+    chosen = [chosen[a] for a in sorted(keep)]
     idx = np.array(chosen)
     stab = mechanism_stability(m, z[idx], pose[idx], inputs[idx])
     jac = kinematic_jacobians(m, z[idx], pose[idx], inputs[idx])
@@ -188,6 +201,9 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     # ---- step 3: Newton on the full equations ------------------------------------------
     sols = refine_ik(m, pose, w, zrod, inputs, max_mode, diag)
     msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
+    if diag.get("continuum"):
+        msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
+               "the least loaded one is reported")
     if not complete:
         msg = "search stopped early (time or node budget): the solution list may be incomplete"
     res = KinematicsResult("ik", mech, tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode,
@@ -213,7 +229,7 @@ def refine_ik(m: MechArrays, pose: NDArray, w: NDArray, zrod: NDArray, inputs: N
         diag["converged"] = int(np.count_nonzero(good))
     x = res.z[good]
     key_scale = np.array([m.L_ref if k != 1 else 1.0 for k in m.kind])
-    return finish_solutions(m, x[:, :6], res.residual[good], P[good], x[:, 6:], max_mode, key_scale)
+    return finish_solutions(m, x[:, :6], res.residual[good], P[good], x[:, 6:], max_mode, key_scale, diag)
 
 
 def _empty_message(curves) -> str:

@@ -217,6 +217,11 @@ def solve_rod(
 
 
 def _check_positive(**values: float) -> None:
+    from ..mechanism.model import LENGTH_LIMITS, STIFFNESS_LIMITS
+
     for name, v in values.items():
         if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v) and v > 0):
             raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        lo, hi = LENGTH_LIMITS if name == "length" else STIFFNESS_LIMITS
+        if not lo <= v <= hi:
+            raise ValueError(f"{name} = {v:g} is outside the supported range [{lo:g}, {hi:g}]")
