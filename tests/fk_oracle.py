@@ -2,8 +2,9 @@
 
 Independence.  Nothing here calls flexkin's solvers: only the plain geometry of a
 :class:`flexkin.Mechanism` is read (through :class:`ik_oracle.Geom`, which rebuilds every clamp
-from SPEC §2 by hand), and the rods are integrated with the independent integrators of
-``tests/ik_oracle.py`` (batched RK4 with variational equations, batched DOP853).
+from SPEC §2 by hand), and the rods are integrated with the integrators of ``tests/ik_oracle.py``
+(batched RK4 with variational equations, batched DOP853) and with the long-double Taylor-series
+integrator here (:func:`taylor_ld`).
 
 Equations.  Each rod obeys the paper's first-order equations (Eqs. 5 and 7),
 
@@ -24,8 +25,8 @@ to ``s = 0``; the residual is its arrival at the clamp point ``A_i`` (2) with th
 above, shot from the other end: shooting from the clamp amplifies errors like ``1/k'^2`` for taut
 rods (the tip then sits near the saddle of the pendulum ``phi'' = Lambda^2 sin phi``), shooting from
 the tip does not -- except for rods of d-mode >= 2 with a small k', which pass near the saddle
-*inside* and are ill-conditioned from either end (see :func:`verified`).  (The reversed rod, ``sigma = L - s``, ``th~ = th + pi``,
-``m~ = -m``, ``n~ = -n``, obeys the same equations, so ``ik_oracle``'s integrators are reused.)
+*inside*; :func:`shoot_from_tip` handles those by the symmetry of the elastica.  (The reversed
+rod, ``sigma = L - s``, ``th~ = th + pi``, ``m~ = -m``, ``n~ = -n``, obeys the same equations.)
 
 Starts (all fed to one damped batch Newton on the 12 equations, RK4 + variational Jacobian):
 
@@ -48,11 +49,12 @@ Starts (all fed to one damped batch Newton on the 12 equations, RK4 + variationa
   ``B_i``, zero tip moment".
 
 Converged candidates are de-duplicated, refined with an 800-step RK4 and polished with the
-tight residual.  Every returned solution is **verified** by :func:`verify_fk`: the 12 equations,
-every rod integrated by DOP853 (rtol 1e-13) from its pinned tip to its clamp, hold to
-``VERIFY_TOL`` (scaled).  To stay well conditioned near the separatrix the integration is split at
-the rod's inflection points using the reflection symmetry of the elastica (:func:`shoot_from_tip`);
-the one-piece integration is kept as a cross-check.  The d-mode of each rod is 1 + the number of
+tight residual.  Every returned solution is **verified** (:func:`verify_fk`): the 12 equations hold
+to ``VERIFY_TOL`` (scaled), every rod integrated from its pinned tip to its clamp by
+:func:`shoot_from_tip` -- a long-double Taylor series, split at the rod's inflection points by the
+reflection symmetry of the elastica, so that rods near the separatrix stay well conditioned
+(checked against a 30-digit mpmath integration in the tests); the one-piece DOP853 integration
+is kept as a cross-check.  The d-mode of each rod is 1 + the number of
 inflection points strictly inside it.  A rod with ``k' < EXTREME_KPRIME = 5e-7`` is **extreme**:
 flexkin drops such rods (documented out of scope); extreme solutions are returned with the flag
 and only reported by the tests.
@@ -69,7 +71,6 @@ from dataclasses import dataclass, field
 import numpy as np
 from ik_oracle import (
     Geom,
-    _rk4_backward_plain,
     _rk4_unit,
     _safe_solve,
     integrate_batch,
@@ -87,7 +88,10 @@ __all__ = [
     "fk_multistart",
     "oracle_fk",
     "pose_match",
+    "shoot_from_tip",
+    "taylor_ld",
     "verify_fk",
+    "verify_solutions",
 ]
 
 #: rods with k' = sqrt(1 - k^2) below this are out of flexkin's scope (it drops them)
@@ -506,10 +510,10 @@ def tip_newton(ts: TipSystem, y, n_iter=30, n_steps=128, tol=1e-10, lam_blow=60.
 
 def tip_polish(ts: TipSystem, Y, n_fast=4, n_tight=4, tol=1e-13):
     """Polish converged candidates: ``n_fast`` Newton iterations on the fast residual
-    (:meth:`TipSystem.plain`) with the 800-step RK4 Jacobian, then ``n_tight`` chord iterations on
-    the tight residual (:meth:`TipSystem.tight`) with its Jacobian (:meth:`TipSystem.tight_jacobian`,
-    computed once) for the candidates whose tight residual is above ``tol``.  Returns the best
-    iterate and its tight residual."""
+    (:meth:`TipSystem.plain`) with the 800-step RK4 Jacobian, then ``n_tight`` Newton iterations on
+    the tight residual (:meth:`TipSystem.tight`) with its Jacobian (:meth:`TipSystem.tight_jacobian`)
+    for the candidates whose tight residual is above ``tol``.  Returns the best iterate and its
+    tight residual."""
     Y = np.atleast_2d(Y).copy()
     active = np.ones(len(Y), bool)
     for _ in range(n_fast):
@@ -530,20 +534,20 @@ def tip_polish(ts: TipSystem, Y, n_fast=4, n_tight=4, tol=1e-13):
     best_r = np.max(np.abs(r), axis=1)
     best_y = Y.copy()
     idx = np.flatnonzero(best_r > tol)
-    if idx.size:
-        J = ts.tight_jacobian(Y[idx], r[idx])
-        Z, rz = Y[idx].copy(), r[idx]
-        for _ in range(n_tight):
-            step = _solve(J, rz)
-            fin = np.all(np.isfinite(step), axis=1)
-            Z[fin] -= step[fin]
-            rz = ts.tight(Z)[0]
-            rn = np.max(np.abs(rz), axis=1)
-            better = rn < best_r[idx]
-            best_r[idx[better]] = rn[better]
-            best_y[idx[better]] = Z[better]
-            if np.all(rn < tol):
-                break
+    Z, rz = Y[idx].copy(), r[idx]
+    for _ in range(n_tight):
+        if not idx.size:
+            break
+        step = _solve(ts.tight_jacobian(Z, rz), rz)
+        fin = np.all(np.isfinite(step), axis=1)
+        Z[fin] -= step[fin]
+        rz = ts.tight(Z)[0]
+        rn = np.max(np.abs(rz), axis=1)
+        better = rn < best_r[idx]
+        best_r[idx[better]] = rn[better]
+        best_y[idx[better]] = Z[better]
+        go = (rn >= tol) & fin
+        idx, Z, rz = idx[go], Z[go], rz[go]
     return best_y, best_r
 
 
@@ -643,17 +647,30 @@ def verify_fk(mech, inputs, load, poses, forces, tip_angles, base_moments=None):
     * ``modes`` (1 + inflection points strictly inside each rod), ``mode_ambiguous`` (the clamp is
       within 1e-7 half-wave of an inflection point), ``kprime`` (per rod), ``base_moments`` (N m);
     * ``verified``: ``tip_shot <= VERIFY_TOL``.
+
+    (A solution given by tip angles and forces in double precision defines ``v = theta_L - psi``
+    only to ~1e-15 absolutely, i.e. to ~1e-15 / k' relatively near the separatrix; the residual
+    inherits that floor, which stays below VERIFY_TOL for in-scope rods, k' >= 5e-7.)
     """
     g = Geom.of(mech)
-    load = np.asarray(load, float).reshape(3)
-    sys = FKSystem(g, inputs, load)
-    ts = TipSystem(sys)
+    sys = FKSystem(g, inputs, np.asarray(load, float).reshape(3))
     poses = np.asarray(poses, float).reshape(-1, 3)
     N = len(poses)
     if N == 0:
         return []
-    forces = np.asarray(forces, float).reshape(N, 3, 2)
-    y = chart_y(sys, forces, np.asarray(tip_angles, float).reshape(N, 3), poses)
+    y = chart_y(sys, np.asarray(forces, float).reshape(N, 3, 2), np.asarray(tip_angles, float).reshape(N, 3), poses)
+    return _verify_chart(sys, y, base_moments)
+
+
+def _verify_chart(sys: FKSystem, y, base_moments=None):
+    """:func:`verify_fk` on chart unknowns ``y`` (N, 12) (the oracle's own solutions are checked
+    here directly, without the round trip through tip angles in double precision)."""
+    g = sys.g
+    ts = TipSystem(sys)
+    y = np.atleast_2d(y)
+    N = len(y)
+    n, poses, *_ = ts.rods(y)
+    forces = n
     r, Z, modes, bnd = ts.tight(y)
     rp = ts.plain(y)
     m0 = -Z[3] * g.EI[None] / sys.L[None]  # reversed rod: m~ = -m
@@ -695,9 +712,9 @@ def verify_solutions(mech, inputs, load, sols):
                      [[r.base_moment for r in s.rods] for s in sols])
 
 
-def _build(mech, sys: FKSystem, ts: TipSystem, Y) -> list[FKOracleSolution]:
-    """Solutions from polished chart unknowns, each verified by :func:`verify_fk` (d-modes counted
-    on its densely sampled tight integration)."""
+def _build(sys: FKSystem, ts: TipSystem, Y) -> list[FKOracleSolution]:
+    """Solutions from polished chart unknowns, each checked by :func:`_verify_chart` (residual of
+    the 12 equations, d-modes, base moments)."""
     Y = np.atleast_2d(Y)
     N = len(Y)
     if N == 0:
@@ -705,7 +722,7 @@ def _build(mech, sys: FKSystem, ts: TipSystem, Y) -> list[FKOracleSolution]:
     f, g = sys, sys.g
     n, pose, *_ = ts.rods(Y)
     tip_angles = Y[:, 2:9:3] + _v_of_t(Y[:, 1:9:3])
-    checks = verify_fk(mech, f.inputs, f.load, pose, n, tip_angles)
+    checks = _verify_chart(sys, Y)
     out = []
     for j in range(N):
         c = checks[j]
@@ -922,30 +939,79 @@ def _chart_modes(lam, t):
     return np.maximum(np.ceil(lam / (2.0 * K)), 1).astype(np.int64)
 
 
-def _integrate_chart_points(lam, t, rtol=1e-10):
-    """Chart points (Lambda, t) integrated by DOP853 (reversed rod from the tip, force along +x,
-    then rotated to the clamp frame).  Returns tip (clamp frame), psi, dimensionless base moment."""
-    v = _v_of_t(t)
-    Y = integrate_batch(-lam**2, np.zeros_like(lam), np.zeros_like(lam), v + np.pi, n_eval=2, rtol=rtol,
-                        atol=rtol)
-    th_clamp = Y[2, :, -1] - np.pi  # theta(0) with the force along +x
-    c, s = np.cos(-th_clamp), np.sin(-th_clamp)
-    dx, dy = -Y[0, :, -1], -Y[1, :, -1]  # tip - clamp
-    tip = np.stack([c * dx - s * dy, s * dx + c * dy], -1)
-    return tip, -th_clamp, -Y[3, :, -1]
+def _chart_points(lam, t, n_steps=256):
+    """Unit clamped-pinned rods of chart points (Lambda, t), integrated from the pinned tip (force
+    along +x), in the clamp frame: returns tip (M, 2), psi (force direction), w0 (dimensionless base
+    moment).
+
+    Same symmetries as :func:`shoot_from_tip` (force frame, angle ``phi`` relative to the force):
+    every half-wave between inflection points advances ``x`` by the same ``2 x_c`` (``x_c`` at the
+    quarter period ``Q = K / Lambda``) and is the mirror image (``y, phi, m -> -y, -phi, -m``) of
+    the previous one, and the second half of a half-wave is the reflection of its first half across
+    ``x = x_c``.  So the whole rod follows from two integrations that only move *away* from the
+    saddle (well conditioned): from the tip to ``Q`` and to the matching point of the last partial
+    half-wave, by fixed-step RK4 (``n_steps``, i.e. ``h Lambda <= K / n_steps``) in double
+    precision -- ample for seeding.
+    """
+    from scipy.special import ellipkm1
+
+    lam = np.asarray(lam, float).ravel()
+    t = np.asarray(t, float).ravel()
+    small = expit(-2.0 * np.abs(t))
+    phi0 = np.where(t <= 0, 2 * np.pi * small, -2 * np.pi * small)  # v in (-pi, pi]
+    K = ellipkm1(np.sin(np.pi * small) ** 2)
+    Q = K / lam
+    H = 2 * Q
+    n = np.floor(1.0 / H)
+    rem = 1.0 - n * H
+    second = rem > Q  # the end lies in the second half of its half-wave: reflect
+    tau = np.where(second, H - rem, rem)
+    a = lam * lam
+
+    def depart(D):
+        """RK4 from (0, 0, phi0, 0) over arc lengths D (force frame, m' = Lambda^2 sin phi)."""
+        z = np.stack([np.zeros_like(lam), np.zeros_like(lam), phi0, np.zeros_like(lam)])
+        h = D / n_steps
+
+        def f(z):
+            return np.stack([np.cos(z[2]), np.sin(z[2]), z[3], a * np.sin(z[2])])
+
+        for _ in range(n_steps):
+            k1 = f(z)
+            k2 = f(z + 0.5 * h * k1)
+            k3 = f(z + 0.5 * h * k2)
+            k4 = f(z + h * k3)
+            z = z + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
+        return z
+
+    zc = depart(np.where(second | (n > 0), Q, 0.0))
+    zs = depart(tau)
+    xc = zc[0]
+    phic = np.pi * np.sign(phi0)
+    x = np.where(second, 2 * xc - zs[0], zs[0])
+    y = zs[1]
+    phi = np.where(second, 2 * phic - zs[2], zs[2])
+    m = zs[3]
+    sgn = np.where(n % 2 == 1, -1.0, 1.0)  # mirror for odd numbers of full half-waves
+    x = n * 2 * xc + x
+    y, phi, m = sgn * y, sgn * phi, sgn * m
+    # reversed rod (force along -x, i.e. the rod's own tip force along +x): the clamp end has the
+    # tangent phi + pi and the moment m; the rod's clamp angle is phi, its base moment -m
+    c, s_ = np.cos(-phi), np.sin(-phi)
+    tip = np.stack([c * x - s_ * y, s_ * x + c * y], -1)
+    return tip, -phi, -m
 
 
-def chart_scan(lam_max=40.0, n_lam=320, n_t=480, n_steps=256, lam_tight=8.0, rows_per_call=16, mode_cap=4):
+def chart_scan(lam_max=40.0, n_lam=320, n_t=480, n_steps=256, mode_cap=4):
     """Unit clamped-pinned rods on a (Lambda, t) grid of the tip-anchored chart (cached).
 
     Returns lam (n_lam,), t (n_t,), tip (n_lam, n_t, 2) in the clamp frame (clamp tangent = x),
-    psi (force direction in the clamp frame), w0 (dimensionless base moment), mode estimate.
-    Lambda is spaced uniformly in sqrt(Lambda).  Rows with Lambda <= ``lam_tight`` are integrated
-    by ``ik_oracle``'s RK4 from the pinned tip; the others (forces above ~64 EI/L^2, where rods
-    near the separatrix amplify integration errors like 1/k'^2) by DOP853 at rtol 1e-10, and
-    there only the points of d-mode <= ``mode_cap`` (:func:`_chart_modes`; the others are NaN).
+    psi (force direction in the clamp frame), w0 (dimensionless base moment), d-mode (exact, from
+    :func:`_chart_modes`).  Lambda is spaced uniformly in sqrt(Lambda), t uniformly in [-8, 8]
+    (k' down to ~1e-7).  Points of d-mode <= ``mode_cap`` are integrated (:func:`_chart_points`),
+    the others are NaN.
     """
-    key = (lam_max, n_lam, n_t, n_steps, lam_tight, mode_cap)
+    key = (lam_max, n_lam, n_t, n_steps, mode_cap)
     if key not in _SCAN:
         lam = np.linspace(np.sqrt(1e-3), np.sqrt(lam_max), n_lam) ** 2
         t = np.linspace(-8.0, 8.0, n_t)
@@ -954,32 +1020,18 @@ def chart_scan(lam_max=40.0, n_lam=320, n_t=480, n_steps=256, lam_tight=8.0, row
         w0 = np.full((n_lam, n_t), np.nan)
         LL, TT = np.meshgrid(lam, t, indexing="ij")
         mode = _chart_modes(LL, TT)
-        lo = np.flatnonzero(lam <= lam_tight)
-        if len(lo):
-            tp, ps, w, md = _rk4_backward_plain(LL[lo].ravel(), TT[lo].ravel(), n_steps)
-            tip[lo] = tp.reshape(len(lo), n_t, 2)
-            psi[lo] = ps.reshape(len(lo), n_t)
-            w0[lo] = w.reshape(len(lo), n_t)
-            mode[lo] = md.reshape(len(lo), n_t)
-        hi = np.flatnonzero(lam > lam_tight)
-        cols = [np.flatnonzero(mode[r] <= mode_cap) for r in hi]
-        todo = [(r, c) for r, c in zip(hi, cols) if len(c)]
-        for g0 in range(0, len(todo), rows_per_call):
-            grp = todo[g0:g0 + rows_per_call]
-            lf = np.concatenate([np.full(len(c), lam[r]) for r, c in grp])
-            tf = np.concatenate([t[c] for _, c in grp])
-            tp, ps, w = _integrate_chart_points(lf, tf)
-            k = 0
-            for r, c in grp:
-                tip[r, c], psi[r, c], w0[r, c] = tp[k:k + len(c)], ps[k:k + len(c)], w[k:k + len(c)]
-                k += len(c)
+        todo = np.flatnonzero((mode <= mode_cap).ravel())
+        tp, ps, w = _chart_points(LL.ravel()[todo], TT.ravel()[todo], n_steps)
+        tip.reshape(-1, 2)[todo] = tp
+        psi.reshape(-1)[todo] = ps
+        w0.reshape(-1)[todo] = w
         _SCAN[key] = (lam, t, tip, psi, w0, mode)
     return _SCAN[key]
 
 
 class _Sheet:
     """Rod i's chart scan placed at its (fixed) clamp: triangles of (tip, force, tip angle)
-    in the world, bucketed for point location (a hierarchy of bucket sizes ``bucket * 8^l`` so
+    in the world, bucketed for point location (a hierarchy of bucket sizes ``bucket * ratio^l`` so
     that large triangles occupy few buckets)."""
 
     def __init__(self, sys: FKSystem, i: int, scan, max_mode: int, bucket: float, cap: int = 16,
@@ -1369,8 +1421,8 @@ def fk_multistart(mech, inputs, load=None, max_mode=2, *, n_random=1500, n_forwa
     Returns a list of :class:`FKOracleSolution` sorted by (modes, pose), every one verified by
     :func:`verify_fk` (``residual <= VERIFY_TOL``; 1e-6 for extreme solutions, reported only); all
     d-modes ``<= max_mode`` unless ``return_all``.  ``stats`` (dict) receives the counts of starts,
-    Newton runs, CPU seconds, and ``rejected``: candidates without extreme rods whose verified
-    residual stayed between VERIFY_TOL and 1e-6 (expected: none).
+    Newton runs, CPU seconds, and ``rejected``: candidates with d-modes <= max_mode and no extreme
+    rod whose verified residual stayed between VERIFY_TOL and 1e-6 (expected: none).
     """
     import time
 
@@ -1456,12 +1508,12 @@ def fk_multistart(mech, inputs, load=None, max_mode=2, *, n_random=1500, n_forwa
         Y = Y[rn < 1e-5]  # (loose: RK4 near the separatrix; the polish and verification decide)
         Y = Y[_dedupe(_key(Y), 1e-6)]
         Yp, _ = tip_polish(ts, Y)
-        for s in _build(mech, sys, ts, Yp):
+        for s in _build(sys, ts, Yp):
             # extreme rods (k' < 5e-7, out of scope, reported only): a looser residual, since the
             # chart itself (v = theta_L - psi near 0 or 2 pi) loses digits there
             ok = s.residual <= (1e-6 if s.extreme else VERIFY_TOL)
             if not ok:
-                if not s.extreme and s.residual <= 1e-6:
+                if not s.extreme and s.residual <= 1e-6 and max(s.modes) <= max_mode:
                     rejected.append((s.mode_label, s.pose.tolist(), s.residual))
                 continue
             if return_all or all(q <= max_mode for q in s.modes):

@@ -11,10 +11,13 @@ For every case (mechanism, actuator inputs, load) the test asserts:
 1. **no miss**: every oracle solution whose d-modes are all <= 2 and that has no extreme rod
    (``k' = sqrt(1 - k^2) < 5e-7``, flexkin's documented scope) is in flexkin's list: a flexkin
    solution with the pose within 1e-6 m / 1e-5 rad and the tip forces within 1e-5 (relative);
-2. **every flexkin solution is verified independently**: the oracle's 12 equations hold
-   (``verify_fk``: tip i at ``B_i``, zero tip moment, ``sum n_i = F``, ``sum (B_i - P) x n_i = M``,
-   from a DOP853 integration of every rod), its rods report the tip at ``B_i`` and the clamp of
-   SPEC §2, its d-modes are the inflection counts (boundary cases excepted), all <= 2, in scope;
+2. **every flexkin solution is verified independently**: the oracle's 12 equations hold to 1e-9
+   (scaled; ``verify_fk``: tip i at ``B_i``, zero tip moment, ``sum n_i = F``,
+   ``sum (B_i - P) x n_i = M``, every rod integrated from its pinned tip to its clamp in long
+   double, split at its inflection points so that rods near the separatrix stay well
+   conditioned), the base moments agree to 1e-7 EI/L, its rods report the tip at ``B_i`` and the
+   clamp of SPEC §2, its d-modes are the inflection counts (boundary cases excepted), all <= 2,
+   and its rods are in scope;
 3. (default cases) the yardstick is sharp: the oracle itself recovers most of flexkin's solutions.
 
 Inputs are those of IK solutions (same load), so the mechanism assembles.  The mechanisms are the
@@ -284,12 +287,12 @@ def test_oracle_shooting_matches_plain_integration():
 
 @pytest.mark.slow
 def test_oracle_shooting_near_separatrix_matches_mpmath():
-    """Near the separatrix (d-mode 2, k' ~ 1e-6, Lambda ~ 25) the one-piece double-precision
-    integration is off by ~1e-3 while ``shoot_from_tip`` agrees with a 30-digit Taylor
-    integration (``mpmath.odefun``) to ~1e-11."""
+    """Near the separatrix (d-mode 2, k' ~ 1e-4, Lambda = 25) the one-piece double-precision
+    integration is off by ~1e-6 while ``shoot_from_tip`` agrees with a 30-digit Taylor
+    integration (``mpmath.odefun``) to ~1e-12."""
     mp = pytest.importorskip("mpmath")
     lam, psi = 25.0, 0.4
-    t = 0.5 * np.log(2e-6 / (2 * np.pi))  # v = 2 pi expit(2 t) ~ 2e-6, k' ~ 1e-6
+    t = 0.5 * np.log(2e-4 / (2 * np.pi))  # v = 2 pi expit(2 t) ~ 2e-4, k' ~ 1e-4
     z, n_in, _ = FO.shoot_from_tip(np.array([lam]), np.array([t]), np.array([psi]))
     assert n_in[0] == 1  # d-mode 2
     psi_f, phi0, _, _ = FO._chart_ld(np.array([lam]), np.array([t]), np.array([psi]))
@@ -306,9 +309,14 @@ def test_oracle_shooting_near_separatrix_matches_mpmath():
                     float(e[2] + pf), float(e[3])])
     plain = integrate_batch(np.array([-lam**2 * np.cos(psi)]), np.array([-lam**2 * np.sin(psi)]), np.zeros(1),
                             np.array([float(psi_f[0]) + float(phi0[0])]))[..., -1][:, 0]
-    err = np.abs(z[:, 0] - ref)
+    def diff(a, b):
+        d = np.abs(a - b)
+        d[2] = abs(float(np.angle(np.exp(1j * (a[2] - b[2])))))  # angles mod 2 pi
+        return d
+
+    err = diff(z[:, 0], ref)
     record("shooting near the separatrix vs mpmath",
-           f"shoot_from_tip err {err.max():.1e}, one-piece DOP853 err {np.abs(plain - ref).max():.1e}")
+           f"shoot_from_tip err {err.max():.1e}, one-piece DOP853 err {diff(plain, ref).max():.1e}")
     assert err[:3].max() < 1e-10 and err[3] < 1e-8 * (1 + abs(ref[3]))
 
 
