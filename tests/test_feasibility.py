@@ -29,7 +29,7 @@ from matplotlib.path import Path as MplPath
 from scipy.spatial import cKDTree
 
 import flexkin
-from flexkin.kinematics.feasibility import (
+from flexkin.analysis.feasibility import (
     TIP_EXCLUSION_FRACTION,
     Feasibility,
     check_feasibility,

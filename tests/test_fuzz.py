@@ -1049,7 +1049,7 @@ def _templates() -> list[tuple[str, list[str]]]:
         ("fk", ["fk", PROTO, "--inputs", "0.025", "0.025", "0.025"]),
         ("fk", ["fk", MIXED, "--inputs", "0.02", "90", "0.8", "--json"]),
         ("path", ["path", PROTO, "--from", "0", "0", "90", "--to", "0", "0", "100", "--steps", "4"]),
-        ("path", ["path", RFR, "--from", "0", "0", "0", "--to", "0.01", "0", "0", "--solution", "0", "--json"]),
+        ("path", ["path", RFR, "--from", "0", "0", "0", "--to", "0.01", "0", "0", "--solution", "1", "--json"]),
     ]
 
 

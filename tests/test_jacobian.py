@@ -8,45 +8,50 @@ import numpy as np
 import pytest
 
 import flexkin
-from flexkin.kinematics.fk import refine_fk
-from flexkin.kinematics.ik import refine_ik
-from flexkin.kinematics.system import REVOLUTE, MechArrays
+from flexkin.solve.fk import refine_fk
+from flexkin.solve.ik import refine_ik
+from flexkin.system import System
 
 CASES = [("unit_3pfr.toml", (0.05, 0.02, 0.35)), ("unit_3rfr.toml", (0.05, -0.03, 0.2)),
          ("mixed_legs.toml", (0.0, 0.0, 0.1)), ("prototype_3pfr.toml", (0.0, 0.0, np.radians(90)))]
 
 
 def _regular(res, limit=1e4):
-    return [s for s in res.solutions if s.jacobian["cond"] is not None and s.jacobian["cond"] < limit
-            and s.jacobian["J_IK"] is not None]
+    return [s for s in res.solutions if np.isfinite(s.jacobian.cond) and s.jacobian.cond < limit
+            and s.jacobian.J_IK is not None]
 
 
 @pytest.mark.parametrize("example, pose", CASES)
 def test_jacobians_match_central_differences_of_the_solvers(example, pose, examples_dir):
     mech = flexkin.load_mechanism(examples_dir / example)
-    m = MechArrays.from_mechanism(mech)
+    m = System.from_mechanism(mech)
+    lay = m.layout
     res = flexkin.ik(mech, pose)
     w = np.array(res.load)
     sols = _regular(res)
     assert sols
-    Su = np.array([1.0 if k == REVOLUTE else m.L_ref for k in m.kind])
+    Su = m.input_scale()
     Sx = np.array([m.L_ref, m.L_ref, 1.0])
     for sol in sols[:: max(1, len(sols) // 5)]:
-        J_IK, J_FK = np.array(sol.jacobian["J_IK"]), np.array(sol.jacobian["J_FK"])
-        z, x, u = np.array([sol.zrod]), np.array(sol.pose), np.array(sol.inputs)
+        J_IK, J_FK = sol.jacobian.J_IK, sol.jacobian.J_FK
+        x0, ch = np.array(sol.x), np.array(sol.charts)[None]
+
+        def resolve(fixed, cols, delta):
+            X = x0.copy()
+            X[cols] += delta
+            out = (refine_ik if fixed == "pose" else refine_fk)(m, mech, X[None], ch, w, 6)
+            return out[0]
 
         def central(h):
             fk_ = np.zeros((3, 3))  # d(inputs)/d(pose) from the IK solver
             ik_ = np.zeros((3, 3))  # d(pose)/d(inputs) from the FK solver
             for j in range(3):
                 dx = np.eye(3)[j] * h * Sx[j]
-                a = refine_ik(m, x + dx, w, z, u[None], 6)
-                b = refine_ik(m, x - dx, w, z, u[None], 6)
-                fk_[:, j] = (np.array(a[0].inputs) - np.array(b[0].inputs)) / (2 * h) / Su
+                a, b = resolve("pose", lay.pose, dx), resolve("pose", lay.pose, -dx)
+                fk_[:, j] = (np.array(a.inputs) - np.array(b.inputs)) / (2 * h) / Su
                 du = np.eye(3)[j] * h * Su[j]
-                a = refine_fk(m, u + du, w, z, x[None], 6)
-                b = refine_fk(m, u - du, w, z, x[None], 6)
-                d = np.array(a[0].pose) - np.array(b[0].pose)
+                a, b = resolve("inputs", lay.inputs, du), resolve("inputs", lay.inputs, -du)
+                d = np.array(a.pose) - np.array(b.pose)
                 d[2] = (d[2] + np.pi) % (2 * np.pi) - np.pi
                 ik_[:, j] = d / (2 * h) / Sx
             return fk_, ik_
@@ -56,8 +61,8 @@ def test_jacobians_match_central_differences_of_the_solvers(example, pose, examp
         fd_fk, fd_ik = (4 * f2 - f1) / 3, (4 * i2 - i1) / 3
         assert np.max(np.abs(fd_fk - J_FK)) <= 1e-5 * np.max(np.abs(J_FK))
         assert np.max(np.abs(fd_ik - J_IK)) <= 1e-5 * np.max(np.abs(J_IK))
-        assert sol.jacobian["det_ik"] == pytest.approx(np.linalg.det(J_IK), rel=1e-9)
-        assert sol.jacobian["det_fk"] * sol.jacobian["det_ik"] == pytest.approx(1.0, rel=1e-8)
+        assert sol.jacobian.det_ik == pytest.approx(np.linalg.det(J_IK), rel=1e-9)
+        assert sol.jacobian.det_fk * sol.jacobian.det_ik == pytest.approx(1.0, rel=1e-8)
 
 
 @pytest.mark.parametrize("example, pose", CASES)
@@ -67,18 +72,18 @@ def test_jik_times_jfk_is_identity(example, pose, examples_dir):
     sols = _regular(res, 1e8)
     assert sols
     for s in sols:
-        J = np.array(s.jacobian["J_IK"]) @ np.array(s.jacobian["J_FK"])
-        assert np.max(np.abs(J - np.eye(3))) < 1e-8 * s.jacobian["cond"]
+        J = s.jacobian.J_IK @ s.jacobian.J_FK
+        assert np.max(np.abs(J - np.eye(3))) < 1e-8 * s.jacobian.cond
 
 
 def test_fk_singularity_where_the_reduced_hessian_is_singular(examples_dir):
     """det J_FK = 0 and a zero eigenvalue of the stability Hessian occur together (with the
     actuators locked the platform then has a zero-stiffness direction): along a family of
     IK solutions, sing_fk and the smallest Hessian eigenvalue change sign at the same place."""
-    from flexkin.kinematics.stability import reduced_hessian
+    from flexkin.analysis.stability import reduced_hessian
 
     mech = flexkin.load_mechanism(examples_dir / "prototype_3pfr.toml")
-    m = MechArrays.from_mechanism(mech)
+    m = System.from_mechanism(mech)
     res = flexkin.ik(mech, (0.0, 0.0, np.radians(90)))
     # over all solutions whose rods are individually stable, sign(det H) = sign(sing_fk) * c
     # for one constant c per branch of the chart orientation: check that det H and det A_FK
@@ -86,16 +91,16 @@ def test_fk_singularity_where_the_reduced_hessian_is_singular(examples_dir):
     rows = [s for s in res.solutions if all(c == 0 for c in _rod_counts(m, s))]
     assert rows
     for s in rows:
-        H = reduced_hessian(m, np.array([s.zrod]), np.array([s.pose]), np.array([s.inputs]))[0]
+        H = reduced_hessian(m, np.array([s.x]), np.array([s.charts]))[0]
         ev = np.linalg.eigvalsh(0.5 * (H + H.T))
         # J_FK = d(rho)/d(x) with the actuators locked: dx = J_IK drho and H dx = (generalised
         # input force) => J_FK is singular iff H is: compare the smallest singular values
-        svd_fk = np.linalg.svd(np.array(s.jacobian["J_FK"]), compute_uv=False)
+        svd_fk = np.linalg.svd(s.jacobian.J_FK, compute_uv=False)
         assert (np.min(np.abs(ev)) < 1e-6) == (svd_fk[-1] < 1e-6)
 
 
 def _rod_counts(m, s):
-    from flexkin.kinematics.stability import rod_pinned_index
+    from flexkin.analysis.stability import rod_pinned_index
     return rod_pinned_index(np.array(s.zrod[0::2]), np.array(s.zrod[1::2]))
 
 

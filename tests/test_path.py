@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import flexkin
-from flexkin.kinematics.path import follow_path
+from flexkin import follow_path
 
 TH = np.radians(20.0)
 START, END = np.array([0.0, 0.0, TH]), np.array([0.8, 0.0, TH])
@@ -78,7 +78,7 @@ def test_fk_singularity_and_stability_loss_coincide_and_are_located(unit_pfr, co
 def test_path_bad_arguments(unit_pfr):
     with pytest.raises(ValueError, match="steps"):
         follow_path(unit_pfr, START, END, steps=0)
-    with pytest.raises(ValueError, match="solution index"):
+    with pytest.raises(ValueError, match="solution 10000 does not exist"):
         follow_path(unit_pfr, START, END, steps=5, solution=10_000)
     with pytest.raises(ValueError, match="start pose"):
         follow_path(unit_pfr, (0, np.nan, 0), END, steps=5)

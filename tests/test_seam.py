@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import flexkin
-from flexkin.kinematics.path import follow_path
+from flexkin import follow_path
 from flexkin.rod.closed_form import chart_to_seam, seam_to_chart, tip_chart, tip_seam
 
 

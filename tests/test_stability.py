@@ -14,8 +14,8 @@ from scipy.optimize import brentq
 from scipy.special import ellipk
 
 import flexkin
-from flexkin.kinematics.stability import mechanism_stability, reduced_hessian, rod_stability, rod_tip_stiffness
-from flexkin.kinematics.system import MechArrays, clamp_arrays
+from flexkin.analysis.stability import mechanism_stability, reduced_hessian, rod_stability, rod_tip_stiffness
+from flexkin.system import System
 from flexkin.rod.closed_form import tip_chart
 from flexkin.rod.inverse import refine_rod
 from flexkin.rod.state import RodState
@@ -112,7 +112,7 @@ def test_tip_stiffness_is_the_hessian_of_the_rod_energy():
 
 def _potential(mech, m, sol, w, pose):
     """V(pose) = sum U_i - F.P - M theta with every rod re-solved, pinned at B_i(pose)."""
-    A, alpha, L = clamp_arrays(m, np.array(sol.inputs)[None])
+    A, alpha, L = m.clamps(np.array(sol.inputs)[None])
     c, s = np.cos(pose[2]), np.sin(pose[2])
     V = -w[0] * pose[0] - w[1] * pose[1] - w[2] * pose[2]
     for i in range(3):
@@ -130,7 +130,7 @@ def _potential(mech, m, sol, w, pose):
                                            ("mixed_legs.toml", (0.0, 0.0, 0.1))])
 def test_reduced_hessian_against_finite_differences_of_the_potential(example, pose, examples_dir):
     mech = flexkin.load_mechanism(examples_dir / example)
-    m = MechArrays.from_mechanism(mech)
+    m = System.from_mechanism(mech)
     res = flexkin.ik(mech, pose)
     w = np.array(res.load)
     checked = 0
@@ -140,7 +140,7 @@ def test_reduced_hessian_against_finite_differences_of_the_potential(example, po
     ks = [np.abs(np.tanh(np.array(s.zrod[0::2]))) for s in res.solutions]
     slack = [s for s, k in zip(res.solutions, ks) if np.all((k > 0.1) & (np.sqrt(1 - k**2) > 1e-2))]
     for sol in slack[:: max(1, len(slack) // 4)]:
-        H = reduced_hessian(m, np.array([sol.zrod]), np.array([sol.pose]), np.array([sol.inputs]))[0]
+        H = reduced_hessian(m, np.array([sol.x]), np.array([sol.charts]))[0]
         S = np.array([m.L_ref, m.L_ref, 1.0])
         h = 2e-4 * S
         q0 = np.array(sol.pose)
@@ -173,9 +173,8 @@ def test_stability_fields_consistent(examples_dir):
     """stable <=> index 0 <=> margin > 0; a rod unstable on its own makes the solution unstable."""
     mech = flexkin.load_mechanism(examples_dir / "prototype_3pfr.toml")
     res = flexkin.ik(mech, (0, 0, np.radians(90)))
-    m = MechArrays.from_mechanism(mech)
-    st = mechanism_stability(m, np.array([s.zrod for s in res.solutions]), np.array([s.pose for s in res.solutions]),
-                             np.array([s.inputs for s in res.solutions]))
+    m = System.from_mechanism(mech)
+    st = mechanism_stability(m, np.array([s.x for s in res.solutions]), np.array([s.charts for s in res.solutions]))
     for s, cnt in zip(res.solutions, st.rod_index):
         assert s.stable == (s.stability_index == 0) == (s.stability_margin > 0)
         if cnt.sum():
@@ -191,7 +190,7 @@ def test_pinned_index_is_not_a_count_of_determinant_zeros(examples_dir):
     discretisation of the constrained second variation (null space of the tip constraint)."""
     from scipy.linalg import null_space
 
-    from flexkin.kinematics.stability import free_index, rod_pinned_index
+    from flexkin.analysis.stability import free_index, rod_pinned_index
     from flexkin.rod.closed_form import tangent_angles
 
     mech = flexkin.load_mechanism(examples_dir / "unit_3rfr.toml")

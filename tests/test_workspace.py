@@ -12,10 +12,9 @@ import numpy as np
 import pytest
 
 import flexkin
-from flexkin.kinematics.path import follow_path
-from flexkin.kinematics.stability import mechanism_stability
-from flexkin.kinematics.system import MechArrays, rod_states
-from flexkin.workspace import REACHED, load_workspace, workspace
+from flexkin import follow_path
+from flexkin.analysis.stability import mechanism_stability
+from flexkin.solve.workspace import REACHED, load_workspace, workspace
 
 sys.path.insert(0, os.path.dirname(__file__))
 from ik_oracle import verify_many  # noqa: E402
@@ -45,22 +44,15 @@ def _cells(ws, mp, mask):
 
 def test_every_sampled_cell_is_a_verified_stable_equilibrium(rfr, rfr_ws):
     mp = rfr_ws.maps[0]
-    m = MechArrays.from_mechanism(rfr)
     cells = _cells(rfr_ws, mp, mp.reached)
     assert len(cells) > 100
     rng = np.random.default_rng(7)
     pick = [cells[k] for k in rng.choice(len(cells), 25, replace=False)]
-    sols = []
-    for j, i in pick:
-        pose = (rfr_ws.x[i], rfr_ws.y[j], rfr_ws.theta)
-        rods = rod_states(m, mp.zrod[j, i], mp.inputs[j, i])
-        sols.append(SimpleNamespace(pose=pose, inputs=tuple(mp.inputs[j, i]), rods=rods))
+    sols = [rfr_ws.solution(rfr, 0, j, i) for j, i in pick]
     checks = verify_many(rfr, sols, load=np.zeros(3))
     assert max(c["tip_error"] for c in checks) < 1e-8
     assert max(c["eq_force"] for c in checks) < 1e-9 and max(c["eq_moment"] for c in checks) < 1e-9
-    st = mechanism_stability(m, np.array([mp.zrod[j, i] for j, i in pick]),
-                             np.array([s.pose for s in sols]), np.array([s.inputs for s in sols]))
-    assert st.stable.all()
+    assert all(s.stable for s in sols)
     # and the full IK at those poses contains them (they are true IK solutions)
     for (j, i), s in list(zip(pick, sols))[:5]:
         res = flexkin.ik(rfr, s.pose)
@@ -81,7 +73,6 @@ def test_fig17_character_bounded_with_both_boundary_kinds(rfr_ws):
 
 def test_ik_boundary_confirmed_by_a_10x_finer_continuation(rfr, rfr_ws):
     mp = rfr_ws.maps[0]
-    m = MechArrays.from_mechanism(rfr)
     X, Y = rfr_ws.x, rfr_ws.y
     cells = _cells(rfr_ws, mp, mp.boundary_ik)
     rng = np.random.default_rng(3)
@@ -96,10 +87,7 @@ def test_ik_boundary_confirmed_by_a_10x_finer_continuation(rfr, rfr_ws):
                 continue
             start = np.array([X[i], Y[j], rfr_ws.theta])
             end = np.array([X[ii], Y[jj], rfr_ws.theta])
-            rods = rod_states(m, mp.zrod[j, i], mp.inputs[j, i])
-            st = mechanism_stability(m, mp.zrod[j, i][None], start[None], mp.inputs[j, i][None])
-            sol = flexkin.Solution(pose=tuple(start), inputs=tuple(mp.inputs[j, i]), modes=tuple(r.mode for r in rods),
-                                   rods=rods, residual=0.0, zrod=tuple(mp.zrod[j, i]), stable=bool(st.stable[0]))
+            sol = rfr_ws.solution(rfr, 0, j, i)
             path = follow_path(rfr, start, end, steps=10, solution=sol)
             tried += 1
             lost = (not path.complete) or any(e.kind == "ik_singularity" for e in path.events)

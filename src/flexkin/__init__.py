@@ -1,7 +1,7 @@
 """flexkin: complete kinematic analysis of planar parallel continuum mechanisms.
 
 Kirchhoff rods in closed form (elliptic integrals), every inverse- and forward-kinematics
-solution over all d-mode combinations, stability, Jacobians and workspaces.
+solution over all d-mode combinations, stability, Jacobians, paths and workspaces.
 
 Quick start
 -----------
@@ -9,16 +9,52 @@ Quick start
 >>> mech = flexkin.load_mechanism("examples/prototype_3pfr.toml")      # doctest: +SKIP
 >>> res = flexkin.ik(mech, (0.0, 0.0, np.radians(90)))                 # doctest: +SKIP
 >>> print(res.table())                                                 # doctest: +SKIP
+
+The solvers are imported on first use, so ``import flexkin`` stays cheap.
 """
 
-from .errors import FlexkinWarning, MechanismError
-from .kinematics import KinematicsResult, Solution, fk, ik
-from .mechanism import Leg, Mechanism, Platform, Rod, load_mechanism
-from .rod import RodInverseResult, RodState, solve_rod
+from __future__ import annotations
 
-__version__ = "0.1.0"
+from typing import Any
+
+from .errors import FlexkinWarning, MechanismError
+from .mechanism import Leg, Mechanism, Platform, Rod, load_mechanism, mechanism_from_dict
+
+__version__ = "0.2.0"
 
 __all__ = [
-    "FlexkinWarning", "MechanismError", "KinematicsResult", "Solution", "fk", "ik", "Leg", "Mechanism",
-    "Platform", "Rod", "load_mechanism", "RodInverseResult", "RodState", "solve_rod", "__version__",
+    "FlexkinWarning", "MechanismError", "Leg", "Mechanism", "Platform", "Rod", "load_mechanism",
+    "mechanism_from_dict", "ik", "fk", "follow_path", "workspace", "check_feasibility", "solve_rod",
+    "RodState", "RodInverseResult", "KinematicsResult", "Solution", "PathResult", "Workspace", "__version__",
 ]
+
+#: public name -> (module, attribute), resolved lazily (PEP 562)
+_LAZY = {
+    "ik": ("flexkin.solve.ik", "ik"),
+    "fk": ("flexkin.solve.fk", "fk"),
+    "follow_path": ("flexkin.solve.path", "follow_path"),
+    "workspace": ("flexkin.solve.workspace", "workspace"),
+    "check_feasibility": ("flexkin.analysis.feasibility", "check_feasibility"),
+    "solve_rod": ("flexkin.rod.inverse", "solve_rod"),
+    "RodState": ("flexkin.rod.state", "RodState"),
+    "RodInverseResult": ("flexkin.rod.inverse", "RodInverseResult"),
+    "KinematicsResult": ("flexkin.results", "KinematicsResult"),
+    "Solution": ("flexkin.results", "Solution"),
+    "PathResult": ("flexkin.solve.path", "PathResult"),
+    "Workspace": ("flexkin.solve.workspace", "Workspace"),
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        mod, attr = _LAZY[name]
+        value = getattr(importlib.import_module(mod), attr)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'flexkin' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

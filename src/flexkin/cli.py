@@ -126,9 +126,9 @@ def _build_parser() -> argparse.ArgumentParser:
     pa.add_argument("--to", dest="end", nargs=3, type=_finite("--to"), metavar=("X", "Y", "THETA"), required=True,
                     help="end pose: m, m, deg")
     pa.add_argument("--steps", type=_count("--steps"), default=50, help="number of path intervals (default 50)")
-    pa.add_argument("--solution", type=_count("--solution", 0), default=None,
-                    help="index (from 0, as listed by 'flexkin ik' minus one) of the IK solution at the start "
-                         "pose to follow (default: the first stable one)")
+    pa.add_argument("--solution", type=_count("--solution", 1), default=None,
+                    help="id of the IK solution at the start pose to follow, as numbered by 'flexkin ik' "
+                         "(the '#' column and the JSON 'id'; default: the first stable one)")
     pa.add_argument("--load", nargs=3, type=_finite("--load"), metavar=("FX", "FY", "MZ"),
                     help="load wrench at P [N, N, N m] (default: the file's [load] or zero)")
     pa.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode for the start IK (default 2)")
@@ -177,7 +177,7 @@ def _cmd_reproduce(a) -> int:
 
 
 def _workspace_task(args: tuple) -> Any:
-    from .workspace import workspace
+    from .solve.workspace import workspace
 
     mech, theta, kw = args
     return workspace(mech, theta, **kw)
@@ -186,7 +186,7 @@ def _workspace_task(args: tuple) -> Any:
 def _cmd_workspace(a) -> int:
     import os
 
-    from .workspace import default_grid
+    from .solve.workspace import default_grid
 
     mech = _load_mech(a.mechanism)
     default_grid(mech, a.step, a.bounds)  # validate before starting any work
@@ -205,7 +205,7 @@ def _cmd_workspace(a) -> int:
                 pass
             results = [f.result() for f in futs]
     else:
-        from .workspace import workspace
+        from .solve.workspace import workspace
 
         results = [workspace(mech, th, progress=not a.json, **kw) for th in thetas]
     if a.save:
@@ -252,7 +252,7 @@ def _count(name: str, lo: int = 1):
 
 
 def _cmd_path(a) -> int:
-    from .kinematics.path import follow_path
+    from .solve.path import follow_path
 
     mech = _load_mech(a.mechanism)
     start = (a.start[0], a.start[1], math.radians(a.start[2]))
@@ -384,7 +384,8 @@ def _cmd_rod(a) -> int:
 
 
 def _cmd_kinematics(a) -> int:
-    from .kinematics import fk, ik
+    from .solve.fk import fk
+    from .solve.ik import ik
 
     mech = _load_mech(a.mechanism)
     if a.command == "ik":

@@ -101,7 +101,7 @@ def reproduce(out: str | Path = "flexkin_report", quick: bool = False,
     from .plot.workspace import plot_workspace
     from .rod.sweep import FIG19, rod_sweep
     from .mechanism.model import circular_EI
-    from .workspace import workspace
+    from .solve.workspace import workspace
 
     t0 = time.perf_counter()
     out = Path(out)

@@ -27,12 +27,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal, get_args
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from flexkin.core.geometry2d import platform_points
 from flexkin.errors import MechanismError
+from flexkin.mechanism.actuators import ACTUATORS, Actuator
+from flexkin.mechanism.joints import JOINTS, Joint
 
 __all__ = [
     "Actuation",
@@ -47,10 +50,8 @@ __all__ = [
 ]
 
 Actuation = Literal["prismatic", "revolute", "length"]
-ACTUATIONS: tuple[str, ...] = get_args(Actuation)
-
-#: One-letter code of each actuation type, used in labels such as ``"mixed (P,R,L)"``.
-_LETTER = {"prismatic": "P", "revolute": "R", "length": "L"}
+ACTUATIONS: tuple[str, ...] = tuple(ACTUATORS)
+JointName = Literal["pinned", "clamped"]
 
 
 def circular_EI(E: float, radius: float) -> float:
@@ -221,12 +222,17 @@ class Rod:
 # --------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Leg:
-    """One leg: an actuated clamp on the base and an elastic rod pinned to the platform.
+    """One leg = an actuator + an elastic rod + a platform joint (paper §3, Fig. 3; §8).
+
+    The fields are the plain data of the mechanism file; the behaviour is composed from the
+    registries: :attr:`actuator` (:data:`~flexkin.mechanism.actuators.ACTUATORS`) maps the
+    input to the rod's clamp, :attr:`platform_joint` (:data:`~flexkin.mechanism.joints.JOINTS`)
+    sets the rod's conditions at ``B_i``.
 
     Parameters
     ----------
     actuation : {"prismatic", "revolute", "length"}
-        Actuator type (SPEC §2).
+        Actuator kind (SPEC §2).
     origin : tuple of float
         Base point (m, world frame): start of the prismatic guide, revolute joint centre,
         or exit of the length-actuation guide.
@@ -237,6 +243,10 @@ class Leg:
         The leg's rod (``rod.length`` is ignored for length legs).
     range : tuple of float, optional
         Actuator stroke ``(lo, hi)`` in internal units (m, or rad for revolute legs).
+    joint : {"pinned", "clamped"}
+        Rod-platform joint (default ``"pinned"``).
+    tip_angle : float
+        Clamped joints: the rod's tangent at ``B_i`` in the platform frame (rad).
     """
 
     actuation: Actuation
@@ -244,6 +254,10 @@ class Leg:
     angle: float
     rod: Rod
     range: tuple[float, float] | None = None
+    joint: JointName = "pinned"
+    tip_angle: float = 0.0
+    actuator: Actuator = field(init=False, repr=False, compare=False)
+    platform_joint: Joint = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.actuation not in ACTUATIONS:
@@ -251,8 +265,13 @@ class Leg:
                 f"leg.actuation: unknown actuation {self.actuation!r} "
                 f"(expected one of {', '.join(map(repr, ACTUATIONS))})"
             )
+        if self.joint not in JOINTS:
+            raise MechanismError(
+                f"leg.joint: unknown joint {self.joint!r} (expected one of {', '.join(map(repr, JOINTS))})"
+            )
         object.__setattr__(self, "origin", _bounded_point(self.origin, "leg.origin"))
         object.__setattr__(self, "angle", _finite(self.angle, "leg.angle"))
+        object.__setattr__(self, "tip_angle", _finite(self.tip_angle, "leg.tip_angle"))
         if not isinstance(self.rod, Rod):
             raise MechanismError(f"leg.rod: expected a Rod, got {self.rod!r}")
         if self.actuation != "length" and self.rod.length is None:
@@ -268,8 +287,11 @@ class Leg:
                     f"leg.range: a length leg's range is a free rod length and must be > 0, got {self.range!r}"
                 )
             object.__setattr__(self, "range", (lo, hi))
+        length = None if self.actuation == "length" else self.rod.length
+        object.__setattr__(self, "actuator", ACTUATORS[self.actuation](self.origin, self.angle, length, self.range))
+        object.__setattr__(self, "platform_joint", JOINTS[self.joint](self.tip_angle))
 
-    # ---- geometry ----------------------------------------------------------------
+    # ---- delegation to the actuator --------------------------------------------------------
     @property
     def direction(self) -> NDArray[np.float64]:
         """Unit vector ``(cos angle, sin angle)``."""
@@ -293,24 +315,11 @@ class Leg:
         L : ndarray, shape ``u.shape``
             Free rod length (m).
         """
-        u = np.asarray(u, dtype=float)
-        origin = np.asarray(self.origin, dtype=float)
-        if self.actuation == "prismatic":
-            A = origin + u[..., None] * self.direction
-            alpha = np.full(u.shape, self.angle)
-            L = np.full(u.shape, float(self.rod.length))  # type: ignore[arg-type]
-        elif self.actuation == "revolute":
-            A = np.broadcast_to(origin, u.shape + (2,)).copy()
-            alpha = u.copy()
-            L = np.full(u.shape, float(self.rod.length))  # type: ignore[arg-type]
-        else:  # length
-            A = np.broadcast_to(origin, u.shape + (2,)).copy()
-            alpha = np.full(u.shape, self.angle)
-            L = u.copy()
-        return A, alpha, L
+        return self.actuator.clamp(u)
 
     def in_range(self, u: ArrayLike) -> NDArray[np.bool_]:
-        """Whether input(s) ``u`` (internal units) lie in the leg's range (always true without one).
+        """Whether input(s) ``u`` (internal units) lie in the leg's range (always true without
+        one); revolute inputs are compared modulo 360 degrees.
 
         Parameters
         ----------
@@ -322,17 +331,12 @@ class Leg:
         ndarray of bool
             Same shape as ``u``.
         """
-        u = np.asarray(u, dtype=float)
-        if self.range is None:
-            return np.ones(u.shape, dtype=bool)
-        lo, hi = self.range
-        return (u >= lo) & (u <= hi)
+        return self.actuator.in_range(u)
 
-    # ---- units -------------------------------------------------------------------
     @property
     def input_unit(self) -> str:
         """Display unit of the input: ``"deg"`` for revolute legs, ``"m"`` otherwise."""
-        return "deg" if self.actuation == "revolute" else "m"
+        return self.actuator.input_unit
 
     def to_display(self, u: ArrayLike) -> NDArray[np.float64] | float:
         """Internal input (m or rad) to display units (m or deg).
@@ -347,9 +351,7 @@ class Leg:
         float or ndarray
             A float for scalar input, an array otherwise.
         """
-        a = np.asarray(u, dtype=float)
-        out = np.degrees(a) if self.actuation == "revolute" else a.copy()
-        return float(out) if out.ndim == 0 else out
+        return self.actuator.to_display(u)
 
     def from_display(self, v: ArrayLike) -> NDArray[np.float64] | float:
         """Display input (m or deg) to internal units (m or rad).
@@ -364,9 +366,7 @@ class Leg:
         float or ndarray
             A float for scalar input, an array otherwise.
         """
-        a = np.asarray(v, dtype=float)
-        out = np.radians(a) if self.actuation == "revolute" else a.copy()
-        return float(out) if out.ndim == 0 else out
+        return self.actuator.from_display(v)
 
 
 # --------------------------------------------------------------------------------------
@@ -444,15 +444,7 @@ class Platform:
         ndarray, shape (..., 3, 2)
             ``B_i`` for i = 1, 2, 3 along the second-last axis.
         """
-        pose = np.asarray(pose, dtype=float)
-        if pose.shape[-1:] != (3,):
-            raise ValueError(f"pose must have shape (..., 3), got {pose.shape}")
-        x, y, th = pose[..., 0:1], pose[..., 1:2], pose[..., 2:3]  # (..., 1)
-        c, s = np.cos(th), np.sin(th)
-        bx, by = self.b[:, 0], self.b[:, 1]  # (3,)
-        Bx = x + c * bx - s * by
-        By = y + s * bx + c * by
-        return np.stack([Bx, By], axis=-1)
+        return platform_points(self.b, pose)
 
 
 # --------------------------------------------------------------------------------------
@@ -544,16 +536,24 @@ class Mechanism:
         return tuple(leg.actuation for leg in self.legs)  # type: ignore[return-value]
 
     @property
+    def joints(self) -> tuple[str, str, str]:
+        """Rod-platform joint of each leg (``"pinned"`` or ``"clamped"``)."""
+        return tuple(leg.joint for leg in self.legs)  # type: ignore[return-value]
+
+    @property
     def kind(self) -> str:
-        """Human label: ``"3-PFR"``, ``"3-RFR"``, ``"3-PFR(length)"`` or e.g. ``"mixed (P,R,L)"``."""
+        """Human label: ``"3-PFR"``, ``"3-RFR"``, ``"3-PFR(length)"``, ``"3-PF"`` (clamped tips)
+        or e.g. ``"mixed (P,R,L)"`` / ``"mixed (PF,RFR,LFR)"``."""
         acts = set(self.actuations)
-        if acts == {"prismatic"}:
-            return "3-PFR"
-        if acts == {"revolute"}:
-            return "3-RFR"
-        if acts == {"length"}:
-            return "3-PFR(length)"
-        return "mixed (" + ",".join(_LETTER[a] for a in self.actuations) + ")"
+        joints = set(self.joints)
+        tail = "FR" if joints == {"pinned"} else ("F" if joints == {"clamped"} else None)
+        if len(acts) == 1 and tail is not None:
+            base = {"prismatic": "3-P", "revolute": "3-R", "length": "3-P"}[self.actuations[0]]
+            return base + tail + ("(length)" if acts == {"length"} else "")
+        if joints == {"pinned"}:
+            return "mixed (" + ",".join(leg.actuator.letter for leg in self.legs) + ")"
+        return "mixed (" + ",".join(leg.actuator.letter + ("F" if leg.joint == "clamped" else "FR")
+                                    for leg in self.legs) + ")"
 
     @property
     def is_symmetric_rods(self) -> bool:

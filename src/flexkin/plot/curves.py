@@ -10,7 +10,7 @@ from .style import mode_color, new_figure, save
 
 __all__ = ["plot_curves"]
 
-_KIND = {0: "prismatic (y = h)", 1: "revolute (x² + y² = r²)", 2: "length (y/x = tan β)"}
+_KIND = {"prismatic": "prismatic (y = h)", "revolute": "revolute (x² + y² = r²)", "length": "length (y/x = tan β)"}
 
 
 def plot_curves(result, path: str | None = None) -> Any:
@@ -43,7 +43,7 @@ def plot_curves(result, path: str | None = None) -> Any:
         ax.set_xlim(0, 360)
         ax.set_ylim(-1.02, 1.02)
         ax.set_xlabel("ψ [deg]")
-        ax.set_title(f"leg {leg.leg + 1}: {_KIND[leg.kind]}", fontsize=9)
+        ax.set_title(f"leg {leg.leg + 1}: {_KIND.get(leg.actuation, leg.actuation)}", fontsize=9)
         ax.grid(True, lw=0.4, alpha=0.5)
         ax.legend(fontsize=7, loc="lower right")
     axes[0].set_ylabel("k_r")

@@ -15,7 +15,7 @@ __all__ = ["plot_solutions"]
 
 def plot_solutions(result, path: str | None = None, max_panels: int = 48, ncols: int | None = None,
                    zoom: bool = False) -> Any:
-    """Draw every solution of ``result`` (a :class:`~flexkin.kinematics.KinematicsResult`).
+    """Draw every solution of ``result`` (a :class:`~flexkin.results.KinematicsResult`).
 
     Panels are numbered like ``result.table()`` and titled with the d-modes (coloured by
     combination) and the stability verdict.  Returns the Figure; saves it if ``path``.

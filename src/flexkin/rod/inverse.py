@@ -21,10 +21,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..numerics import NewtonResult, batch_newton
+from ..core.jit import njit
+
+from ..core.geometry2d import rot2
+from ..core.validation import check_max_mode, check_positive
 from .atlas import get_atlas, in_scope
-from .closed_form import mode_of, tip_chart
-from .state import RodState, project_chart, rot
+from .closed_form import mode_of
+from .kernels import NQ, X, Y, project, unified_eval
+from .state import RodState
 
 __all__ = ["RodInverseResult", "solve_rod", "atlas_starts", "refine_rod", "ACCEPT_TOL"]
 
@@ -109,25 +113,70 @@ def atlas_starts(target: NDArray[np.float64], max_mode: int, tol: float = 0.02) 
     return np.concatenate(starts)
 
 
-def refine_rod(z0: NDArray[np.float64], target: NDArray[np.float64]):
+@dataclass(frozen=True)
+class RodNewton:
+    """Outcome of :func:`refine_rod`: iterates ``z`` (n, 2), residual norms, convergence flags."""
+
+    z: NDArray[np.float64]
+    residual: NDArray[np.float64]
+    converged: NDArray[np.bool_]
+
+
+@njit(cache=True)
+def _rod_newton(Z: np.ndarray, tx: float, ty: float, tol: float, max_iter: int, res: np.ndarray) -> None:
+    """Damped Newton on ``tip(z) = (tx, ty)`` for unit pinned rods, in place (2x2, analytic Jacobian)."""
+    q = np.empty(NQ)
+    g = np.empty((NQ, 3))
+    zt = np.empty(3)
+    for k in range(Z.shape[0]):
+        z = Z[k]
+        project(0, z)
+        unified_eval(z[0], z[1], q, g)
+        rx, ry = q[X] - tx, q[Y] - ty
+        nrm = max(abs(rx), abs(ry))
+        for _ in range(max_iter):
+            if not nrm > tol:
+                break
+            a, b, c, d = g[X, 0], g[X, 1], g[Y, 0], g[Y, 1]
+            det = a * d - b * c
+            if not abs(det) > 1e-300:
+                break
+            dz0 = -(d * rx - b * ry) / det
+            dz1 = -(-c * rx + a * ry) / det
+            s = max(abs(dz0) / 0.2, abs(dz1) / 0.5, 1.0)
+            alpha = 1.0 / s
+            improved = False
+            for _ls in range(9):
+                zt[0] = z[0] + alpha * dz0
+                zt[1] = z[1] + alpha * dz1
+                project(0, zt)
+                unified_eval(zt[0], zt[1], q, g)
+                nx, ny = q[X] - tx, q[Y] - ty
+                nt = max(abs(nx), abs(ny))
+                if nt < nrm:
+                    z[0], z[1] = zt[0], zt[1]
+                    rx, ry, nrm = nx, ny, nt
+                    improved = True
+                    break
+                alpha *= 0.5
+            if not improved:
+                break
+        res[k] = nrm if nrm == nrm else np.inf
+
+
+def refine_rod(z0: NDArray[np.float64], target: NDArray[np.float64]) -> RodNewton:
     """Newton on the unit-rod tip equations from starts ``z0`` (n, 2) in the ``(v, phis)`` chart.
 
-    ``target`` is the unit-rod tip in the local frame.  Returns a
-    :class:`~flexkin.numerics.NewtonResult`.
+    ``target`` is the unit-rod tip in the local frame.  Near ``|k| = 1`` the closed form's
+    rounding noise is a few 1e-13 L: roots that stalled there are accepted
+    (:data:`ACCEPT_TOL` is still far below the 1e-10 m contract for any L <= 10 m).
     """
-    def residual(z: NDArray[np.float64]) -> NDArray[np.float64]:
-        t = tip_chart(z[:, 0], z[:, 1])
-        return np.stack([t.x - target[0], t.y - target[1]], -1)
-
-    res = batch_newton(residual, np.atleast_2d(z0), tol=1e-13, project=_project, max_step=np.array([0.2, 0.5]))
-    # near |k| = 1 the closed form's rounding noise is a few 1e-13 L: accept roots that
-    # stalled there (ACCEPT_TOL is still far below the 1e-10 m contract for any L <= 10 m)
-    return NewtonResult(res.z, res.residual, res.residual <= ACCEPT_TOL, res.iterations)
-
-
-def _project(z: NDArray[np.float64]) -> NDArray[np.float64]:
-    ku, ph = project_chart(z[:, 0], z[:, 1])
-    return np.stack([ku, ph], -1)
+    z0 = np.atleast_2d(np.asarray(z0, dtype=float))
+    Z = np.zeros((len(z0), 3))
+    Z[:, :2] = z0[:, :2]
+    res = np.full(len(Z), np.inf)
+    _rod_newton(Z, float(target[0]), float(target[1]), 1e-13, 40, res)
+    return RodNewton(Z[:, :2], res, res <= ACCEPT_TOL)
 
 
 def unique_rows(z: NDArray[np.float64], tol: float) -> NDArray[np.int64]:
@@ -169,15 +218,17 @@ def solve_rod(
         ``solutions`` may be empty (then ``message`` says why); never raises for an
         unreachable tip.
     """
+    from ..mechanism.model import LENGTH_LIMITS, STIFFNESS_LIMITS
+
     t0 = time.perf_counter()
     tip = np.asarray(tip, dtype=float).reshape(2)
     clamp = np.asarray(clamp, dtype=float).reshape(2)
-    _check_positive(length=length, EI=EI)
-    if not (isinstance(max_mode, (int, np.integer)) and max_mode >= 1):
-        raise ValueError(f"max_mode must be an integer >= 1, got {max_mode!r}")
+    length = check_positive(length, "length", LENGTH_LIMITS)
+    EI = check_positive(EI, "EI", STIFFNESS_LIMITS)
+    max_mode = check_max_mode(max_mode)
     if not (np.all(np.isfinite(tip)) and np.all(np.isfinite(clamp)) and np.isfinite(clamp_angle)):
         raise ValueError("tip, clamp and clamp_angle must be finite numbers")
-    local = rot(-clamp_angle) @ (tip - clamp) / length
+    local = rot2(-clamp_angle) @ (tip - clamp) / length
     base = dict(tip=(float(tip[0]), float(tip[1])), clamp=(float(clamp[0]), float(clamp[1])),
                 clamp_angle=float(clamp_angle), length=float(length), EI=float(EI), max_mode=int(max_mode))
     dist = float(np.hypot(*local))
@@ -214,14 +265,3 @@ def solve_rod(
         diagnostics={"starts": int(len(starts)), "converged": int(np.count_nonzero(res.converged))},
         **base,
     )
-
-
-def _check_positive(**values: float) -> None:
-    from ..mechanism.model import LENGTH_LIMITS, STIFFNESS_LIMITS
-
-    for name, v in values.items():
-        if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v) and v > 0):
-            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
-        lo, hi = LENGTH_LIMITS if name == "length" else STIFFNESS_LIMITS
-        if not lo <= v <= hi:
-            raise ValueError(f"{name} = {v:g} is outside the supported range [{lo:g}, {hi:g}]")

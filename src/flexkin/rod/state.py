@@ -8,69 +8,48 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .closed_form import HALF_PI, mode_of, rod_shape, standard_chart, tip_any, tip_chart, to_paper
+from ..core.geometry2d import rot2, rotate
+from .closed_form import mode_of, standard_chart, to_paper
+from .kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, EN, FX, FY, M0, ML, NQ, TH, X, Y, eval_rods, profile
 
-__all__ = ["RodState", "project_chart", "rot"]
+__all__ = ["RodState", "rot"]
 
-#: bound on the chart variable v (ku = tanh v, k' = sech v ~ 2 exp(-|v|))
-_V_MAX = 40.0
-
-
-def rot(angle: float | NDArray[np.float64]) -> NDArray[np.float64]:
-    """Rotation matrix (or stack of matrices) for ``angle`` (rad)."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
-
-
-def project_chart(v: NDArray[np.float64], phis: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Map iterates back into the chart ``phis < pi/2`` (``ku = tanh v``).
-
-    A step across ``phis = pi/2`` passes through the unloaded straight rod, where the
-    chart is polar (``sqrt(R) ~ pi/2 - phis``, ``psi = 2 arccos(ku)``); it is continued on
-    the other side, i.e. with the force reversed: ``phis -> pi - phis`` and ``psi -> psi +/- pi``,
-    which is ``a -> a -/+ pi/2`` for the angle ``a = arcsin(ku)`` (the Gudermannian of v).
-    """
-    v = np.asarray(v, dtype=float).copy()
-    phis = np.asarray(phis, dtype=float).copy()
-    over = phis > HALF_PI - 1e-12
-    if np.any(over):
-        phis[over] = np.minimum(np.pi - phis[over], HALF_PI - 1e-12)
-        a = np.arctan(np.sinh(np.clip(v[over], -700.0, 700.0)))  # Gudermannian: ku = sin(a)
-        a = np.where(a >= 0, a - HALF_PI, a + HALF_PI)
-        v[over] = np.arcsinh(np.tan(a))
-    np.clip(v, -_V_MAX, _V_MAX, out=v)
-    return v, phis
+#: kept for callers of the former helper; the one rotation is :func:`flexkin.core.geometry2d.rot2`
+rot = rot2
 
 
 @dataclass(frozen=True)
 class RodState:
-    """An equilibrium of one clamped–pinned rod.
+    """An equilibrium of one rod (clamped at its base; pinned or clamped at its tip).
 
     Attributes
     ----------
     mode : int
-        d-mode q (number of inflection points on (0, L], SPEC §2).
+        d-mode q: 1 + the number of sign changes of the bending moment strictly inside the
+        rod (for a pinned tip: the number of inflection points on (0, L], SPEC §2).
     k, psi : float
-        Paper parameters (Eqs. 9–13): ``k`` signed like the base moment, ``psi`` (rad) the
-        direction of the tip force in the rod's local (clamp) frame.
-    ku, phis : float
-        Unified-chart coordinates (see :mod:`flexkin.rod.closed_form`); ``v`` with
-        ``ku = tanh v`` is the solvers' variable.
+        Paper parameters (Eqs. 9-13): ``k`` signed like the base moment (``|k| > 1`` for the
+        non-inflectional rods a clamped tip allows), ``psi`` (rad) the direction of the tip
+        force in the rod's local (clamp) frame.
     length, EI : float
         Free length (m) and bending stiffness (N m^2).
     clamp, clamp_angle : clamp point (world, m) and tangent angle (rad).
     tip, tip_angle : tip position (world, m) and tangent angle at the tip (rad).
     tip_force : force applied on the rod tip by the platform, world frame (N).
     base_moment : ``EI theta'(0)`` (N m), counter-clockwise positive.
+    tip_moment : ``EI theta'(L)``, the moment on the rod tip by the platform (N m; 0 if pinned).
     energy : bending energy (J).
+    chart, coords : the chart (:mod:`flexkin.rod.kernels`) and coordinates the rod is known in.
+    joint : ``"pinned"`` or ``"clamped"``.
+    mode_boundary : bool
+        The base moment vanishes to within the solver's resolution (an inflection at the
+        clamp): the rod sits on the boundary between d-modes ``mode`` and ``mode + 1`` and
+        carries the lower label (SPEC §2).
     """
 
     mode: int
     k: float
     psi: float
-    ku: float
-    phis: float
-    v: float
     length: float
     EI: float
     clamp: tuple[float, float]
@@ -80,67 +59,114 @@ class RodState:
     tip_force: tuple[float, float]
     base_moment: float
     energy: float
+    tip_moment: float = 0.0
+    chart: int = CHART_UNIFIED
+    coords: tuple[float, ...] = ()
+    joint: str = "pinned"
+    mode_boundary: bool = False
     extra: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+
+    # ---- construction ------------------------------------------------------------------
+    @classmethod
+    def from_unit(cls, q: NDArray, chart: int, coords: NDArray, length: float, EI: float,
+                  clamp: NDArray | tuple[float, float], clamp_angle: float, mode: int,
+                  joint: str = "pinned", mode_boundary: bool = False) -> "RodState":
+        """Place a unit rod's tip quantities ``q`` (NQ,) at a clamp, scaled to ``length``, ``EI``."""
+        c = np.asarray(clamp, dtype=float)
+        tip = c + length * rotate(q[[X, Y]], clamp_angle)
+        f = EI / length**2 * rotate(q[[FX, FY]], clamp_angle)
+        R = float(np.hypot(q[FX], q[FY]))
+        psi = float(np.mod(np.arctan2(q[FY], q[FX]), 2.0 * np.pi)) if R > 0 else np.pi
+        lam = np.sqrt(R)
+        ch = np.cos(0.5 * psi)
+        m0 = float(q[M0])
+        if lam > 0:
+            k = float(np.copysign(np.hypot(ch, m0 / (2.0 * lam)), m0 if m0 != 0 else 1.0))
+        else:
+            k = float(np.copysign(np.inf, m0)) if m0 != 0 else 0.0
+        if chart == CHART_UNIFIED or chart == CHART_SEAM:
+            v, ph = (float(a) for a in standard_chart(coords[0], coords[1]))
+            k = float(to_paper(np.tanh(v), ph)[0])
+        return cls(mode=int(mode), k=k, psi=psi, length=float(length), EI=float(EI),
+                   clamp=(float(c[0]), float(c[1])), clamp_angle=float(clamp_angle),
+                   tip=(float(tip[0]), float(tip[1])), tip_angle=float(clamp_angle + q[TH]),
+                   tip_force=(float(f[0]), float(f[1])), base_moment=float(EI / length * m0),
+                   energy=float(EI / length * q[EN]), tip_moment=float(EI / length * q[ML]), chart=int(chart),
+                   coords=tuple(float(a) for a in coords), joint=joint, mode_boundary=bool(mode_boundary))
 
     @classmethod
     def from_chart(cls, v: float, phis: float, length: float, EI: float,
                    clamp: NDArray[np.float64] | tuple[float, float] = (0.0, 0.0),
                    clamp_angle: float = 0.0) -> "RodState":
-        """Build the state from chart coordinates ``(v, phis)`` (``ku = tanh v``) and the clamp
-        (pairs stored in the seam chart are converted, see :func:`~flexkin.rod.closed_form.tip_seam`)."""
-        tu = tip_any(v, phis)
+        """A pinned rod from its chart coordinates ``(v, phis)`` (``ku = tanh v``; pairs stored in
+        the seam chart are converted, see :func:`~flexkin.rod.closed_form.tip_seam`)."""
         v, phis = (float(a) for a in standard_chart(v, phis))
-        ku = float(np.tanh(v))
-        t = _Scaled(tu, length, EI)
-        k, psi, q = to_paper(ku, phis)
-        Rm = rot(clamp_angle)
-        c = np.asarray(clamp, dtype=float)
-        tip = c + Rm @ np.array([float(t.x), float(t.y)])
-        f = Rm @ np.array([float(t.fx), float(t.fy)])
-        return cls(
-            mode=int(q), k=float(k), psi=float(psi), ku=ku, phis=float(phis), v=float(v),
-            length=float(length), EI=float(EI), clamp=(float(c[0]), float(c[1])),
-            clamp_angle=float(clamp_angle), tip=(float(tip[0]), float(tip[1])),
-            tip_angle=float(clamp_angle + t.theta), tip_force=(float(f[0]), float(f[1])),
-            base_moment=float(t.m0), energy=float(t.energy),
-        )
+        q = np.empty((1, NQ))
+        g = np.empty((1, NQ, 3))
+        eval_rods(np.array([CHART_UNIFIED]), np.array([[v, phis, 0.0]]), q, g)
+        return cls.from_unit(q[0], CHART_UNIFIED, np.array([v, phis]), length, EI, clamp, clamp_angle,
+                             int(mode_of(phis)))
+
+    # ---- the unified chart's coordinates (pinned rods) -------------------------------------
+    @property
+    def v(self) -> float:
+        """Solvers' chart variable ``v`` (``ku = tanh v``) of a pinned rod (NaN otherwise)."""
+        if self.chart == CHART_WRENCH:
+            return float("nan")
+        return float(standard_chart(self.coords[0], self.coords[1])[0])
+
+    @property
+    def phis(self) -> float:
+        """Unified clamp amplitude of a pinned rod (NaN otherwise)."""
+        if self.chart == CHART_WRENCH:
+            return float("nan")
+        return float(standard_chart(self.coords[0], self.coords[1])[1])
+
+    @property
+    def ku(self) -> float:
+        """Unified modulus ``tanh v`` of a pinned rod (NaN otherwise)."""
+        return float(np.tanh(self.v))
 
     @property
     def R(self) -> float:
         """Tip force magnitude (N)."""
         return float(np.hypot(*self.tip_force))
 
+    # ---- shape -----------------------------------------------------------------------------
+    def profile(self, n: int = 101) -> dict[str, NDArray[np.float64]]:
+        """The rod sampled at ``n`` points uniformly in arc length: ``s`` (m), ``x``, ``y``
+        (world, m), ``theta`` (rad, world), ``moment`` (N m)."""
+        s = np.linspace(0.0, 1.0, n)
+        out = np.empty((n, 4))
+        z = np.zeros(3)
+        z[:len(self.coords)] = self.coords
+        if self.chart == CHART_SEAM:
+            z[:2] = standard_chart(z[0], z[1])
+            profile(CHART_UNIFIED, z, s, out)
+        else:
+            profile(self.chart, z, s, out)
+        pts = self.length * rotate(out[:, :2], self.clamp_angle) + np.asarray(self.clamp)
+        return {"s": s * self.length, "x": pts[:, 0], "y": pts[:, 1], "theta": out[:, 2] + self.clamp_angle,
+                "moment": out[:, 3] * self.EI / self.length}
+
     def shape(self, n: int = 101) -> NDArray[np.float64]:
         """Deformed centre line in the world frame, shape ``(n, 2)``."""
-        _, x, y, _, _ = rod_shape(self.ku, self.phis, self.length, self.EI, n, kprime=1.0 / np.cosh(self.v))
-        pts = np.stack([x, y], -1) @ rot(self.clamp_angle).T
-        return pts + np.asarray(self.clamp)
+        p = self.profile(n)
+        return np.stack([p["x"], p["y"]], -1)
 
     def curvature(self, n: int = 201) -> NDArray[np.float64]:
         """Curvature ``theta'(s)`` at ``n`` points uniformly spaced in arc length (1/m)."""
-        _, _, _, _, m = rod_shape(self.ku, self.phis, self.length, self.EI, n, kprime=1.0 / np.cosh(self.v))
-        return m / self.EI
+        return self.profile(n)["moment"] / self.EI
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (SPEC §4: angles in degrees)."""
         return {
             "mode": self.mode,
-            "k": self.k,
+            "k": self.k if np.isfinite(self.k) else None,
             "psi_deg": float(np.degrees(self.psi)),
             "tip_force": [self.tip_force[0], self.tip_force[1]],
             "base_moment": self.base_moment,
+            "tip_moment": self.tip_moment,
             "energy": self.energy,
+            "mode_boundary": self.mode_boundary,
         }
-
-
-class _Scaled:
-    """Tip quantities of a unit rod scaled to length ``L`` and stiffness ``EI``."""
-
-    def __init__(self, t, L: float, EI: float) -> None:
-        self.x, self.y, self.theta = t.x * L, t.y * L, t.theta
-        self.fx, self.fy = t.fx * EI / L**2, t.fy * EI / L**2
-        self.m0, self.energy = t.m0 * EI / L, t.energy * EI / L
-
-
-def _mode_ok(phis: NDArray[np.float64], max_mode: int) -> NDArray[np.bool_]:
-    return mode_of(phis) <= max_mode

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .inverse import RodInverseResult, refine_rod, solve_rod
-from .state import rot
+from ..core.geometry2d import rot2
 
 __all__ = ["RodSweep", "rod_sweep", "FIG19"]
 
@@ -85,7 +85,7 @@ def rod_sweep(xs: ArrayLike, tip_y: float, length: float, EI: float, *, clamp_an
         if open_idx and len(sols):
             # continue every open branch by Newton from its previous state (d-mode changes are
             # continuous in the chart) and attach it to the solution it lands on
-            local = rot(-clamp_angle) @ np.array([x, tip_y]) / length
+            local = rot2(-clamp_angle) @ np.array([x, tip_y]) / length
             cont = refine_rod(np.array([last[bi] for bi in open_idx]), local)
             for bi, z, ok in zip(open_idx, cont.z, cont.converged):
                 if not ok:

@@ -37,12 +37,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from ..core.jit import njit
 from numpy.typing import ArrayLike, NDArray
 
+from ..core.geometry2d import rot2
 from ..rod.closed_form import standard_chart, tangent_angles, tip_any, tip_chart
 from ..rod.state import RodState
-from .system import MechArrays, clamp_arrays, platform_points, rod_world
+from ..system import System
 
 __all__ = ["free_index", "rod_pinned_index", "rod_compliance", "rod_tip_stiffness", "reduced_hessian",
            "mechanism_stability",
@@ -174,24 +175,23 @@ def rod_tip_stiffness(v: ArrayLike, phis: ArrayLike, step: float = 1e-6) -> NDAr
     return Jf @ np.linalg.pinv(Jp)
 
 
-def reduced_hessian(m: MechArrays, zrod: NDArray, pose: NDArray, inputs: NDArray) -> NDArray[np.float64]:
+def reduced_hessian(system: System, X: NDArray, charts: NDArray) -> NDArray[np.float64]:
     """Reduced Hessian ``H`` (n, 3, 3) of the potential over the pose (module docstring).
 
     Dimensionless: translations in units of ``L_ref``, energy in ``EI_ref / L_ref``.
     """
-    zrod = np.atleast_2d(zrod)
-    pose = np.atleast_2d(pose)
-    inputs = np.atleast_2d(inputs)
-    n = len(zrod)
-    _, alpha, L = clamp_arrays(m, inputs)
-    _, force = rod_world(m, zrod, inputs)
-    B = platform_points(m, pose)
-    arm = B - pose[:, None, :2]
+    X = np.atleast_2d(X)
+    n = len(X)
+    lay = system.layout
+    _, alpha, L = system.clamps(X[:, lay.inputs])
+    w = system.rod_world(X, charts)
+    force = w["force"]
+    arm = system.platform_points(X[:, lay.pose]) - X[:, None, lay.pose][..., :2]
     H = np.zeros((n, 3, 3))
     for i in range(3):
-        Kl = rod_tip_stiffness(zrod[:, 2 * i], zrod[:, 2 * i + 1]) * (m.EI[i] / L[:, i] ** 3)[:, None, None]
-        ca, sa = np.cos(alpha[:, i]), np.sin(alpha[:, i])
-        Rm = np.stack([np.stack([ca, -sa], -1), np.stack([sa, ca], -1)], -2)
+        z = _pinned_coords(system, X, charts, i)
+        Kl = rod_tip_stiffness(z[:, 0], z[:, 1]) * (system.EI[i] / L[:, i] ** 3)[:, None, None]
+        Rm = rot2(alpha[:, i])
         K = Rm @ Kl @ np.swapaxes(Rm, 1, 2)
         J = np.zeros((n, 2, 3))
         J[:, 0, 0] = J[:, 1, 1] = 1.0
@@ -199,8 +199,20 @@ def reduced_hessian(m: MechArrays, zrod: NDArray, pose: NDArray, inputs: NDArray
         J[:, 1, 2] = arm[:, i, 0]
         H += np.swapaxes(J, 1, 2) @ K @ J
         H[:, 2, 2] -= np.sum(force[:, i] * arm[:, i], axis=1)
-    S = np.array([m.L_ref, m.L_ref, 1.0])
-    return H * S[None, :, None] * S[None, None, :] / (m.F_ref * m.L_ref)
+    S = np.array([system.L_ref, system.L_ref, 1.0])
+    return H * S[None, :, None] * S[None, None, :] / (system.F_ref * system.L_ref)
+
+
+def _pinned_coords(system: System, X: NDArray, charts: NDArray, i: int) -> NDArray[np.float64]:
+    """Rod ``i``'s coordinates in the unified chart ``(v, phis)`` (seam-chart rods converted)."""
+    from ..rod.closed_form import seam_to_chart
+
+    z = np.array(X[:, system.layout.rod[i]][:, :2], dtype=float)
+    seam = np.asarray(charts)[:, i] == 1
+    if np.any(seam):
+        v, ph = seam_to_chart(z[seam, 0], z[seam, 1])
+        z[seam, 0], z[seam, 1] = v, ph
+    return z
 
 
 @dataclass(frozen=True)
@@ -214,15 +226,16 @@ class StabilityArrays:
     hessian: NDArray[np.float64]      # (n, 3, 3) reduced Hessian (dimensionless)
 
 
-def mechanism_stability(m: MechArrays, zrod: NDArray, pose: NDArray, inputs: NDArray,
+def mechanism_stability(system: System, X: NDArray, charts: NDArray,
                         steps: int = JACOBI_STEPS) -> StabilityArrays:
     """Stability of equilibria of the mechanism with the actuators locked.
 
     Parameters
     ----------
-    m : MechArrays
-    zrod, pose, inputs : ndarray, shapes (n, 6), (n, 3), (n, 3)
+    system : System
+    X : ndarray (n, n_unknowns)
         Refined equilibria (the load enters through the rods' tip forces).
+    charts : ndarray (n, 3)
     steps : int
         RK4 steps of the Jacobi fields along each rod.
 
@@ -235,10 +248,11 @@ def mechanism_stability(m: MechArrays, zrod: NDArray, pose: NDArray, inputs: NDA
         crosses zero where the platform loses stability, at an FK singularity); when ``k``
         rods buckle on their own it is ``-k``.  So ``margin > 0`` iff stable.
     """
-    zrod = np.atleast_2d(np.asarray(zrod, dtype=float))
-    n = len(zrod)
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    n = len(X)
+    zrod = np.concatenate([_pinned_coords(system, X, charts, i) for i in range(3)], axis=1)
     cnt = rod_pinned_index(zrod[:, 0::2].ravel(), zrod[:, 1::2].ravel(), steps).reshape(n, 3)
-    H = reduced_hessian(m, zrod, pose, inputs)
+    H = reduced_hessian(system, X, charts)
     H = 0.5 * (H + np.swapaxes(H, 1, 2))
     finite = np.all(np.isfinite(H), axis=(1, 2))
     ev = np.full((n, 3), -np.inf)

@@ -24,11 +24,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..numerics import batch_newton, solve_batch
+from ..core.geometry2d import fit_pose as _fit_pose
+from ..core.geometry2d import rot2
+from ..core.validation import as_triple, check_budget, check_max_mode
+from ..results import FKDiagnostics, KinematicsResult, Solution
 from ..rod.atlas_tree import get_atlas_tree
-from .ik import RESIDUAL_TOL, _as_load, _as_triple, _check_budget, _check_mode, finish_solutions, project_unknowns
-from .results import KinematicsResult, Solution
-from .system import REVOLUTE, MechArrays, clamp_arrays, residual, rod_world
+from ..system import System
+from .corrector import newton
+from .finish import finish_solutions
+from .ik import RESIDUAL_TOL, as_load
 
 __all__ = ["fk"]
 
@@ -52,7 +56,7 @@ def _dist_ok(c, h, d, tol):
     return (near <= d + tol) & (far >= d - tol)
 
 
-def fk_candidates(m: MechArrays, inputs: NDArray, w: NDArray, max_mode: int,
+def fk_candidates(m: System, inputs: NDArray, w: NDArray, max_mode: int,
                   max_nodes: int = 20_000_000, chunk: int = 200_000, stride: int = 1,
                   eps_tip: float = 0.01, eps_force: float = 0.05, fallback: int = 20_000,
                   deadline: float | None = None) -> tuple[NDArray[np.float64], bool]:
@@ -65,12 +69,11 @@ def fk_candidates(m: MechArrays, inputs: NDArray, w: NDArray, max_mode: int,
     (deterministic subsample) and reports ``complete = False``.
     """
     tree = get_atlas_tree(max_mode, stride)
-    A, alpha, L = clamp_arrays(m, inputs[None])
+    A, alpha, L = m.clamps(inputs[None])
     A, alpha, L = A[0], alpha[0], L[0]
     cen_t, half_t, cen_f, half_f = [], [], [], []
     for i in range(3):
-        c, s = np.cos(alpha[i]), np.sin(alpha[i])
-        R = np.array([[c, -s], [s, c]])
+        R = rot2(alpha[i])
         Ra = np.abs(R)
         lo, hi = tree.lo, tree.hi
         ct, ht = 0.5 * (lo[:, :2] + hi[:, :2]), 0.5 * (hi[:, :2] - lo[:, :2])
@@ -147,12 +150,15 @@ def fk_candidates(m: MechArrays, inputs: NDArray, w: NDArray, max_mode: int,
         if len(rest) > fallback:
             rest = rest[np.random.default_rng(0).choice(len(rest), fallback, replace=False)]
         zrod = np.concatenate([tree.center[rest[:, i]] for i in range(3)], axis=1)
-        tips, _ = rod_world(m, zrod, np.broadcast_to(inputs, (len(zrod), 3)))
+        Xr = np.zeros((len(zrod), m.layout.n_unknowns))
+        Xr[:, :6] = zrod
+        Xr[:, m.layout.inputs] = inputs
+        tips = m.rod_world(Xr, m.default_charts(len(Xr)))["tip"]
         starts.append(np.concatenate([zrod, fit_pose(m, tips)], axis=1))
     return np.concatenate(starts), complete
 
 
-def _linearised_starts(m: MechArrays, tree, lv: NDArray[np.int64], A, alpha, L, w: NDArray,
+def _linearised_starts(m: System, tree, lv: NDArray[np.int64], A, alpha, L, w: NDArray,
                        reach: float = 1.0) -> NDArray[np.float64]:
     """One linearised Newton step per leaf triple; keep those whose step stays near the cells.
 
@@ -175,8 +181,7 @@ def _linearised_starts(m: MechArrays, tree, lv: NDArray[np.int64], A, alpha, L, 
         Jt = np.empty((k, 3, 2, 2))
         Jf = np.empty((k, 3, 2, 2))
         for i in range(3):
-            c, s = np.cos(alpha[i]), np.sin(alpha[i])
-            R = np.array([[c, -s], [s, c]])
+            R = rot2(alpha[i])
             fs = m.EI[i] / L[i] ** 2
             val, grd = tree.value[sl[:, i]], tree.grad[sl[:, i]]
             tip[:, i] = A[i] + L[i] * val[:, :2] @ R.T
@@ -207,7 +212,8 @@ def _linearised_starts(m: MechArrays, tree, lv: NDArray[np.int64], A, alpha, L, 
         # scale rows and columns for conditioning
         rs = np.array([1.0 / m.L_ref] * 6 + [1.0 / m.F_ref] * 2 + [1.0 / (m.F_ref * m.L_ref)])
         Ms = M * rs[None, :, None]
-        step = -solve_batch(Ms, r * rs)
+        with np.errstate(all="ignore"):
+            step = -_solve_batch(Ms, r * rs)
         step = np.where(np.isfinite(step), step, np.inf)
         half = np.concatenate([tree.half[sl[:, i]] for i in range(3)], axis=1)
         keep = np.all(np.abs(step[:, :6]) <= (1.0 + reach) * half, axis=1)
@@ -216,18 +222,29 @@ def _linearised_starts(m: MechArrays, tree, lv: NDArray[np.int64], A, alpha, L, 
     return np.concatenate(out)
 
 
-def fit_pose(m: MechArrays, tips: NDArray[np.float64]) -> NDArray[np.float64]:
+def fit_pose(m: System, tips: NDArray[np.float64]) -> NDArray[np.float64]:
     """Least-squares rigid pose placing the attach points ``b_i`` on ``tips`` (n, 3, 2)."""
-    b = m.attach
-    bc = b - b.mean(0)
-    pbar = tips.mean(1)
-    pc = tips - pbar[:, None]
-    s = np.sum(bc[None, :, 0] * pc[..., 1] - bc[None, :, 1] * pc[..., 0], axis=1)
-    c = np.sum(bc[None, :, 0] * pc[..., 0] + bc[None, :, 1] * pc[..., 1], axis=1)
-    th = np.arctan2(s, c)
-    bm = b.mean(0)
-    P = pbar - np.stack([np.cos(th) * bm[0] - np.sin(th) * bm[1], np.sin(th) * bm[0] + np.cos(th) * bm[1]], -1)
-    return np.concatenate([P, th[:, None]], axis=1)
+    return _fit_pose(m.attach, tips)
+
+
+def _solve_batch(J: NDArray[np.float64], b: NDArray[np.float64], rcond: float = 1e-13) -> NDArray[np.float64]:
+    """Batched ``J x = b``; singular or non-finite systems get the minimum-norm least-squares
+    solution from a batched truncated SVD (no Python loop)."""
+    try:
+        x = np.linalg.solve(J, b[..., None])[..., 0]
+        if np.all(np.isfinite(x)):
+            return x
+    except np.linalg.LinAlgError:
+        pass
+    finite = np.all(np.isfinite(J), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
+    x = np.full(b.shape, np.nan)
+    if np.any(finite):
+        U, S, Vt = np.linalg.svd(J[finite])
+        cut = S > rcond * S[:, :1]
+        inv = np.where(cut, 1.0 / np.where(cut, S, 1.0), 0.0)
+        c = np.einsum("nji,nj->ni", U, b[finite]) * inv
+        x[finite] = np.einsum("nji,nj->ni", Vt, c)
+    return x
 
 
 def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *, stride: int = 4,
@@ -237,6 +254,7 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     Parameters
     ----------
     mech : Mechanism
+        The mechanism.
     inputs : (u1, u2, u3)
         Actuator inputs in SI units: m for prismatic and length legs, **radians** for
         revolute legs.
@@ -258,24 +276,28 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         ``problem == "fk"``; ``solutions`` possibly empty, then ``message`` explains.
     """
     t0 = time.perf_counter()
-    max_mode = _check_mode(max_mode)
-    u = _as_triple(inputs, "inputs")
-    w = _as_load(mech, load)
-    m = MechArrays.from_mechanism(mech)
-    for i in range(3):
-        if m.kind[i] == 2 and u[i] <= 0:
-            raise ValueError(f"input {i + 1}: the free length of a length-actuated leg must be > 0, got {u[i]}")
+    max_mode = check_max_mode(max_mode)
+    u = as_triple(inputs, "inputs")
+    w = as_load(mech, load)
+    for i, leg in enumerate(mech.legs):
+        leg.actuator.check_input(float(u[i]), i)
+    deadline = None if time_budget is None else t0 + check_budget(time_budget)
+    system = System.from_mechanism(mech)
+    given, wl = tuple(float(v) for v in u), tuple(float(v) for v in w)
     diag: dict[str, Any] = {}
-    msg = _assembly_obstruction(m, u)
+    msg = _assembly_obstruction(system, u)
     if msg:
-        return KinematicsResult("fk", mech, tuple(float(v) for v in u), tuple(float(v) for v in w), max_mode, (),
-                                True, msg, time.perf_counter() - t0, diag)
-    deadline = None if time_budget is None else t0 + _check_budget(time_budget)
-    x0, complete = fk_candidates(m, u, w, max_mode, stride=stride, deadline=deadline)
+        return KinematicsResult((), True, msg, time.perf_counter() - t0, FKDiagnostics(), "fk", mech, given, wl,
+                                max_mode)
+    x0, complete = fk_candidates(system, u, w, max_mode, stride=stride, deadline=deadline)
     diag["candidates"] = int(len(x0))
     diag["search_complete"] = complete
-
-    sols = refine_fk(m, u, w, x0[:, :6], x0[:, 6:], max_mode, diag)
+    lay = system.layout
+    X = np.zeros((len(x0), lay.n_unknowns))
+    X[:, :lay.n_rod] = x0[:, :6]
+    X[:, lay.pose] = x0[:, 6:]
+    X[:, lay.inputs] = u
+    sols = refine_fk(system, mech, X, system.default_charts(len(X)), w, max_mode, diag)
     msg = "" if sols else "no equilibrium pose found for these inputs and load"
     if diag.get("continuum"):
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
@@ -284,34 +306,24 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         why = ("time budget exhausted" if deadline is not None and time.perf_counter() > deadline
                else "search budget exhausted near a singular configuration")
         msg = f"{why}: the solution list may be incomplete" + ("" if sols else "; " + msg)
-    res = KinematicsResult("fk", mech, tuple(float(v) for v in u), tuple(float(v) for v in w), max_mode,
-                           tuple(sols), complete, msg, time.perf_counter() - t0, diag)
+    res = KinematicsResult(tuple(sols), complete, msg, time.perf_counter() - t0, FKDiagnostics(**diag), "fk", mech,
+                           given, wl, max_mode)
     return res.select(stable_only=True) if stable_only else res
 
 
-def refine_fk(m: MechArrays, u: NDArray, w: NDArray, zrod: NDArray, pose: NDArray, max_mode: int,
+def refine_fk(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
               diag: dict[str, Any] | None = None) -> list[Solution]:
-    """Newton-refine FK candidates (unknowns: rod charts and pose) and build solutions."""
-    def f(x: NDArray) -> NDArray:
-        return residual(m, x[:, :6], x[:, 6:], np.broadcast_to(u, (len(x), 3)), w)
-
-    x0 = np.concatenate([np.atleast_2d(zrod), np.atleast_2d(pose)], axis=1)
-    cap = np.array([0.2, 0.5] * 3 + [0.1 * m.L_ref, 0.1 * m.L_ref, 0.3])
-    res = batch_newton(f, x0, tol=1e-13, project=project_unknowns, max_step=cap, merge_after=4, merge_tol=1e-6)
+    """Newton-refine FK candidates ``X`` (inputs held) and build the solutions."""
+    res = newton(system, X, charts, load, "inputs")
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
-    x = res.z[good]
-    pose = x[:, 6:].copy()
-    pose[:, 2] = (pose[:, 2] + np.pi) % (2 * np.pi) - np.pi
-    key_scale = np.array([m.L_ref if k != REVOLUTE else 1.0 for k in m.kind])
-    return finish_solutions(m, x[:, :6], res.residual[good], pose, np.broadcast_to(u, (len(x), 3)),
-                            max_mode, key_scale, diag)
+    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag)
 
 
-def _assembly_obstruction(m: MechArrays, u: NDArray) -> str:
+def _assembly_obstruction(m: System, u: NDArray) -> str:
     """A one-line reason when the rods cannot reach a common platform, else ``""``."""
-    A, _, L = clamp_arrays(m, u[None])
+    A, _, L = m.clamps(u[None])
     A, L = A[0], L[0]
     b = m.attach
     for i in range(3):

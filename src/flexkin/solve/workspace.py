@@ -29,13 +29,15 @@ from typing import Any, Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .kinematics.continuation import SEAM_V, continue_ik, unknown_scale
-from .kinematics.ik import _as_load, _check_budget, _check_mode, ik
-from .kinematics.jacobian import kinematic_jacobians
-from .kinematics.results import Solution
-from .kinematics.stability import mechanism_stability
-from .kinematics.system import REVOLUTE, MechArrays
-from .rod.closed_form import mode_of
+from ..analysis.jacobian import kinematic_jacobians
+from ..analysis.stability import mechanism_stability
+from ..core.validation import check_budget, check_max_mode
+from ..results import Solution
+from ..rod.kernels import CHART_UNIFIED
+from ..system import System
+from .continuation import SEAM_V, continue_ik
+from .finish import build_solutions, rod_modes
+from .ik import as_load, ik, refine_ik
 
 __all__ = ["workspace", "Workspace", "WorkspaceMap", "load_workspace", "REACHED", "UNSTABLE", "FAILED", "SEAM"]
 
@@ -71,6 +73,7 @@ class WorkspaceMap:
     seeds: tuple[int, ...]
     zrod: NDArray[np.float64] = field(repr=False, default=None)
     boundary_seam: NDArray[np.bool_] = field(repr=False, default=None)
+    charts: NDArray[np.int64] = field(repr=False, default=None)
 
     @property
     def reached(self) -> NDArray[np.bool_]:
@@ -117,7 +120,23 @@ class Workspace:
 
     @property
     def step(self) -> float:
+        """Grid step (m)."""
         return float(self.x[1] - self.x[0]) if len(self.x) > 1 else 0.0
+
+    def solution(self, mech, aspect: int, j: int, i: int) -> Solution:
+        """The equilibrium mapped at cell ``[j, i]`` of aspect ``aspect`` (0-based), with its
+        stability and Jacobians, as a :class:`~flexkin.results.Solution` of ``mech``."""
+        mp = self.maps[aspect]
+        if mp.status[j, i] != REACHED:
+            raise ValueError(f"cell ({j}, {i}) was not reached in aspect {aspect}")
+        system = System.from_mechanism(mech)
+        lay = system.layout
+        x = np.zeros(lay.n_unknowns)
+        x[:lay.n_rod] = mp.zrod[j, i]
+        x[lay.pose] = (self.x[i], self.y[j], self.theta)
+        x[lay.inputs] = mp.inputs[j, i]
+        ch = mp.charts[j, i] if mp.charts is not None else system.default_charts(1)[0]
+        return build_solutions(system, mech, x[None], ch[None], np.asarray(self.load))[0]
 
     def union(self) -> NDArray[np.bool_]:
         """Cells reached by any aspect."""
@@ -134,7 +153,7 @@ class Workspace:
                                 "message": self.message, "n_maps": len(self.maps)}
         for k, m in enumerate(self.maps):
             for name in ("status", "inputs", "modes", "margin", "det_ik", "det_fk", "cond", "boundary_ik",
-                         "boundary_fk", "zrod", "boundary_seam"):
+                         "boundary_fk", "zrod", "boundary_seam", "charts"):
                 data[f"map{k}_{name}"] = getattr(m, name)
             data[f"map{k}_seeds"] = np.array(m.seeds)
         np.savez_compressed(path, **data)
@@ -169,7 +188,7 @@ def load_workspace(path: str) -> Workspace:
     maps = []
     for k in range(int(d["n_maps"])):
         g = {name: d[f"map{k}_{name}"] for name in ("status", "inputs", "modes", "margin", "det_ik", "det_fk", "cond",
-                                                      "boundary_ik", "boundary_fk", "zrod", "boundary_seam")}
+                                                      "boundary_ik", "boundary_fk", "zrod", "boundary_seam", "charts")}
         maps.append(WorkspaceMap(seeds=tuple(int(s) for s in d[f"map{k}_seeds"]), **g))
     return Workspace(str(d["mechanism_name"]), tuple(str(k) for k in d["kinds"]), float(d["theta"]),
                      tuple(float(v) for v in d["load"]), d["x"], d["y"], tuple(float(v) for v in d["seed"]),
@@ -200,39 +219,46 @@ def default_grid(mech, step: float | None = None, bounds: ArrayLike | None = Non
     return b[0] + step * np.arange(nx), b[2] + step * np.arange(ny)
 
 
-def _continue_adaptive(m: MechArrays, x: NDArray, p0: NDArray, p1: NDArray, w: NDArray, levels: int = 3
-                       ) -> tuple[NDArray, NDArray]:
-    """:func:`continue_ik` from ``p0`` to ``p1``; failed rows are retried with the step cut
-    into 2, 4, ... ``2**levels`` sub-steps before the target is declared out of reach."""
-    xn, ok = continue_ik(m, x, p0, p1, w)
+def _continue_adaptive(system: System, x: NDArray, ch: NDArray, p1: NDArray, w: NDArray, levels: int = 3
+                       ) -> tuple[NDArray, NDArray, NDArray]:
+    """:func:`continue_ik` of ``x`` (pose columns: the start poses) to ``p1``; failed rows are
+    retried with the step cut into 2, 4, ... ``2**levels`` sub-steps before the target is
+    declared out of reach."""
+    lay = system.layout
+    p0 = x[:, lay.pose].copy()
+    xn, cn, ok = continue_ik(system, x, ch, p1, w)
     for lev in range(1, levels + 1):
         bad = np.flatnonzero(~ok)
         if bad.size == 0:
             break
         k = 2 ** lev
-        xb, alive = x[bad].copy(), np.ones(bad.size, bool)
+        xb, cb, alive = x[bad].copy(), ch[bad].copy(), np.ones(bad.size, bool)
         for step in range(k):
-            a = p0[bad] + (step / k) * (p1[bad] - p0[bad])
             b = p0[bad] + ((step + 1) / k) * (p1[bad] - p0[bad])
             idx = np.flatnonzero(alive)
             if idx.size == 0:
                 break
-            xs, oks = continue_ik(m, xb[idx], a[idx], b[idx], w)
-            xb[idx] = xs
+            xs, cs, oks = continue_ik(system, xb[idx], cb[idx], b[idx], w)
+            xb[idx], cb[idx] = xs, cs
             alive[idx[~oks]] = False
         xn[bad[alive]] = xb[alive]
+        cn[bad[alive]] = cb[alive]
         ok[bad[alive]] = True
-    return xn, ok
+    return xn, cn, ok
 
 
-def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray, Y: NDArray, theta: float,
-               w: NDArray, claimed: list[tuple[NDArray, NDArray]], progress: Callable[[int], None] | None,
+def _propagate(m: System, x0: NDArray, c0: NDArray, seed_ij: tuple[int, int], X: NDArray, Y: NDArray,
+               theta: float, w: NDArray, claimed: list[tuple[NDArray, NDArray]],
+               progress: Callable[[int], None] | None,
                deadline: float | None = None) -> tuple[dict[str, NDArray], int, set[int]]:
     """Wave propagation of one seed. Returns the map arrays, the number of continuation
     steps, and the indices of earlier maps that this one joins (same solution at a cell)."""
     ny, nx = len(Y), len(X)
     status = np.zeros((ny, nx), np.int8)
-    sol = np.full((ny, nx, 9), np.nan)
+    lay = m.layout
+    nu = lay.n_unknowns
+    sol = np.full((ny, nx, nu), np.nan)
+    chs = np.zeros((ny, nx, 3), np.int64)
     margin = np.zeros((ny, nx))
     dik = np.full((ny, nx), np.inf)
     dfk = np.full((ny, nx), np.inf)
@@ -242,19 +268,20 @@ def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray,
     bik = np.zeros((ny, nx), bool)
     bfk = np.zeros((ny, nx), bool)
     bseam = np.zeros((ny, nx), bool)
-    scale = unknown_scale(m)
+    su = m.input_scale()
+    iu = lay.inputs
     joins: set[int] = set()
 
-    def record(jj, ii, xs, poses):
-        st = mechanism_stability(m, xs[:, :6], poses, xs[:, 6:])
-        jac = kinematic_jacobians(m, xs[:, :6], poses, xs[:, 6:])
-        return st, jac
+    def record(xs, cs):
+        return mechanism_stability(m, xs, cs), kinematic_jacobians(m, xs, cs, w)
 
     j0, i0 = seed_ij
-    pose0 = np.array([[X[i0], Y[j0], theta]])
-    st, jac = record(None, None, x0[None], pose0)
+    x0 = x0.copy()
+    x0[lay.pose] = (X[i0], Y[j0], theta)
+    st, jac = record(x0[None], c0[None])
     status[j0, i0] = REACHED
     sol[j0, i0] = x0
+    chs[j0, i0] = c0
     margin[j0, i0], dik[j0, i0], dfk[j0, i0], cond[j0, i0] = st.margin[0], jac.det_ik[0], jac.det_fk[0], jac.cond[0]
     sik[j0, i0], sfk[j0, i0] = jac.sing_ik[0], jac.sing_fk[0]
     front = [(j0, i0)]
@@ -276,14 +303,14 @@ def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray,
         S = np.array(src)
         D = np.array(dst)
         xs = sol[S[:, 0], S[:, 1]]
-        p0 = np.stack([X[S[:, 1]], Y[S[:, 0]], np.full(len(S), theta)], -1)
+        cs = chs[S[:, 0], S[:, 1]]
         p1 = np.stack([X[D[:, 1]], Y[D[:, 0]], np.full(len(D), theta)], -1)
-        xn, ok = _continue_adaptive(m, xs, p0, p1, w)
+        xn, cn, ok = _continue_adaptive(m, xs, cs, p1, w)
         steps += len(D)
         new_front = []
         if np.any(ok):
             idx = np.flatnonzero(ok)
-            st, jac = record(None, None, xn[idx], p1[idx])
+            st, jac = record(xn[idx], cn[idx])
             for k, r in enumerate(idx):
                 jj, ii = D[r]
                 j, i = S[r]
@@ -298,12 +325,13 @@ def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray,
                 else:
                     status[jj, ii] = REACHED
                     sol[jj, ii] = xn[r]
+                    chs[jj, ii] = cn[r]
                     margin[jj, ii], dik[jj, ii], dfk[jj, ii] = st.margin[k], jac.det_ik[k], jac.det_fk[k]
                     cond[jj, ii], sik[jj, ii], sfk[jj, ii] = jac.cond[k], jac.sing_ik[k], jac.sing_fk[k]
                     # joining a region mapped from an earlier seed: same solution at this cell
                     hit = False
                     for q, (st_q, sol_q) in enumerate(claimed):
-                        if st_q[jj, ii] == REACHED and np.max(np.abs(sol_q[jj, ii, 6:] - xn[r, 6:]) / scale[6:]) < 1e-6:
+                        if st_q[jj, ii] == REACHED and np.max(np.abs(sol_q[jj, ii, iu] - xn[r, iu]) / su) < 1e-6:
                             joins.add(q)
                             hit = True
                     if not hit:
@@ -311,8 +339,9 @@ def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray,
         for r in np.flatnonzero(~ok):
             jj, ii = D[r]
             j, i = S[r]
-            taut = np.abs(xs[r, 0:6:2]) > SEAM_V
-            if np.any(taut) and not np.any(taut & (m.kind == REVOLUTE)):
+            taut = np.array([(cs[r, i] == CHART_UNIFIED and abs(xs[r, lay.rod[i].start]) > SEAM_V) or cs[r, i] == 1
+                             for i in range(3)])
+            if np.any(taut) and not np.any(taut & m.angular):
                 # a rod of a prismatic or length leg is close to straight under tension, where
                 # the elliptic chart has its seam: the step failed for the chart, not for the
                 # mechanism (a revolute leg's taut rod is at its reach |B - A| = L instead:
@@ -332,7 +361,7 @@ def _propagate(m: MechArrays, x0: NDArray, seed_ij: tuple[int, int], X: NDArray,
     bik &= reached
     bfk &= reached
     bseam &= reached & ~bik & ~bfk
-    return ({"status": status, "sol": sol, "margin": margin, "det_ik": dik, "det_fk": dfk, "cond": cond,
+    return ({"status": status, "sol": sol, "charts": chs, "margin": margin, "det_ik": dik, "det_fk": dfk, "cond": cond,
              "boundary_ik": bik, "boundary_fk": bfk, "boundary_seam": bseam}, steps, joins)
 
 
@@ -373,12 +402,12 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
     Workspace
     """
     t0 = time.perf_counter()
-    deadline = None if time_budget is None else t0 + _check_budget(time_budget)
+    deadline = None if time_budget is None else t0 + check_budget(time_budget)
     th = float(theta)
     if not np.isfinite(th):
         raise ValueError(f"theta must be finite, got {theta!r}")
-    w = _as_load(mech, load)
-    m = MechArrays.from_mechanism(mech)
+    w = as_load(mech, load)
+    m = System.from_mechanism(mech)
     X, Y = default_grid(mech, step, bounds)
     if isinstance(seed, Solution):
         if abs(((seed.pose[2] - th) + np.pi) % (2 * np.pi) - np.pi) > 1e-9:
@@ -395,17 +424,17 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
     pose = np.array([X[i0], Y[j0], th])
     kinds = tuple(leg.actuation for leg in mech.legs)
     if isinstance(seed, Solution):
-        res_sols = [seed]
-        from .kinematics.ik import refine_ik
-        moved = refine_ik(m, pose, w, np.array([seed.zrod]), np.array([seed.inputs]), 6)
-        starts = [(0, np.concatenate([moved[0].zrod, moved[0].inputs]))] if moved else []
+        x = np.array(seed.x, dtype=float)
+        x[m.layout.pose] = pose
+        moved = refine_ik(m, mech, x[None], np.array(seed.charts)[None], w, 6)
+        starts = [(0, moved[0].x, moved[0].charts)] if moved else []
     else:
-        res = ik(mech, pose, load=w, max_mode=_check_mode(max_mode))
+        res = ik(mech, pose, load=w, max_mode=check_max_mode(max_mode))
         res_sols = list(res.solutions)
         stable = [k for k, s in enumerate(res_sols) if s.stable]
         if not all_aspects:
             stable = stable[:1]
-        starts = [(k, np.concatenate([res_sols[k].zrod, res_sols[k].inputs])) for k in stable]
+        starts = [(k, np.array(res_sols[k].x), np.array(res_sols[k].charts)) for k in stable]
     if not starts:
         return Workspace(mech.name, kinds, th, tuple(map(float, w)), X, Y, (float(X[i0]), float(Y[j0])), (),
                          time.perf_counter() - t0, 0, "no stable IK solution at the seed pose")
@@ -423,16 +452,17 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
     seeds: list[list[int]] = []
     claimed: list[tuple[NDArray, NDArray]] = []
     total = 0
-    for k, x0 in starts:
+    iu = m.layout.inputs
+    for k, x0, c0 in starts:
         # a seed already inside a mapped region (same solution at the seed cell) adds nothing
         dup = [q for q, (st_q, sol_q) in enumerate(claimed)
-               if st_q[j0, i0] == REACHED and np.allclose(sol_q[j0, i0, 6:], x0[6:], atol=1e-9 * m.L_ref)]
+               if st_q[j0, i0] == REACHED and np.allclose(sol_q[j0, i0, iu], x0[iu], atol=1e-9 * m.L_ref)]
         if dup:
             seeds[dup[0]].append(k)
             continue
         if deadline is not None and time.perf_counter() > deadline:
             break
-        maps_k, n, joins = _propagate(m, x0, (j0, i0), X, Y, th, w, claimed, cb, deadline)
+        maps_k, n, joins = _propagate(m, x0, c0, (j0, i0), X, Y, th, w, claimed, cb, deadline)
         total += n
         raw.append(maps_k)
         seeds.append([k])
@@ -447,10 +477,14 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
         if not s:
             continue  # merged into a later one
         sol = r["sol"]
-        modes = np.where(np.isfinite(sol[..., 1:6:2]), mode_of(np.nan_to_num(sol[..., 1:6:2])), 0).astype(np.int8)
-        maps.append(WorkspaceMap(r["status"], np.nan_to_num(sol[..., 6:]), modes, r["margin"],
+        reached = r["status"] == REACHED
+        modes = np.zeros(sol.shape[:2] + (3,), np.int8)
+        if np.any(reached):
+            modes[reached] = rod_modes(m, sol[reached], r["charts"][reached])
+        maps.append(WorkspaceMap(r["status"], np.nan_to_num(sol[..., m.layout.inputs]), modes, r["margin"],
                                  r["det_ik"], r["det_fk"], r["cond"], r["boundary_ik"], r["boundary_fk"],
-                                 tuple(sorted(set(s))), np.nan_to_num(sol[..., :6]), r["boundary_seam"]))
+                                 tuple(sorted(set(s))), np.nan_to_num(sol[..., :m.layout.n_rod]), r["boundary_seam"],
+                                 r["charts"]))
     # merged maps: a map joined by a later seed is reported within that later map's union
     maps.sort(key=lambda mp: -mp.area_cells)
     msg = ("time budget exhausted: the maps hold what was reached"

@@ -22,9 +22,9 @@ import contourpy
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.geometry2d import rotate
 from ..rod.atlas import get_atlas
 from ..rod.closed_form import kr_from_k, mode_of, tip_chart, to_paper
-from .system import LENGTH, PRISMATIC, REVOLUTE, MechArrays
 
 __all__ = ["LegCurve", "leg_curves"]
 
@@ -39,30 +39,16 @@ class LegCurve:
     """
 
     leg: int
-    kind: int
+    actuation: str
     branches: tuple[dict[str, NDArray], ...]
 
     def __len__(self) -> int:
         return len(self.branches)
 
 
-def _field(kind: int, A, B, angle: float, length: float):
-    """Scalar field whose zero set is the leg's geometric condition, and a validity mask."""
-    d = B - A
-    if kind == PRISMATIC:
-        hh = (-np.sin(angle) * d[0] + np.cos(angle) * d[1]) / length  # Fig. 5: y = h
-        return (lambda x, y: y - hh), None
-    if kind == REVOLUTE:  # Fig. 8: x^2 + y^2 = r^2
-        r = float(np.hypot(*d))
-        return lambda x, y: np.hypot(x, y) - r / length, None
-    beta = np.arctan2(d[1], d[0]) - angle  # Fig. 9: y/x = tan(beta) on the unit rod
-    cb, sb = np.cos(beta), np.sin(beta)
-    return (lambda x, y: x * sb - y * cb), (lambda x, y: x * cb + y * sb > 1e-9)
-
-
-def leg_curves(m: MechArrays, B: NDArray[np.float64], max_mode: int, *, force_tol: float = 0.05,
+def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, force_tol: float = 0.05,
                passes: int = 8) -> list[LegCurve]:
-    """Geometric-condition curves of the three legs for attach points ``B`` (3, 2).
+    """Geometric-condition curves of the pinned legs for world attach points ``B`` (3, 2).
 
     The marching-squares polylines are snapped onto the exact level set (Newton along the
     local normal, closed form) and refined by bisection wherever the rod force jumps by
@@ -72,7 +58,7 @@ def leg_curves(m: MechArrays, B: NDArray[np.float64], max_mode: int, *, force_to
 
     Parameters
     ----------
-    m : MechArrays
+    mech : Mechanism
     B : (3, 2) world attach points at the imposed pose.
     max_mode : int
         Largest d-mode represented.
@@ -83,16 +69,16 @@ def leg_curves(m: MechArrays, B: NDArray[np.float64], max_mode: int, *, force_to
     """
     atlas = get_atlas(max_mode)
     out = []
-    for i in range(3):
-        kind = int(m.kind[i])
-        A = m.origin[i]
-        length = m.length[i] if kind != LENGTH else 1.0
-        f, mask_f = _field(kind, A, B[i], float(m.angle[i]), length)
+    for i, leg in enumerate(mech.legs):
+        act = leg.actuator
+        ls = act.level_set(B[i])
+        f, mask_f = ls.g, ls.mask
         z = f(atlas.x, atlas.y)
         if mask_f is not None:
             z = np.ma.masked_where(~mask_f(atlas.x, atlas.y), z)
         gen = contourpy.contour_generator(x=atlas.PHIS, y=atlas.V, z=z, name="serial",
                                           line_type=contourpy.LineType.Separate)
+
         def g(zv, zp, f=f):
             t = tip_chart(zv, zp)
             return f(t.x, t.y)
@@ -102,10 +88,10 @@ def leg_curves(m: MechArrays, B: NDArray[np.float64], max_mode: int, *, force_to
             if len(line) < 2:
                 continue
             zl = np.stack([line[:, 1], line[:, 0]], -1)
-            data = _branch_data(m, i, kind, B[i], zl[:, 0], zl[:, 1])
+            data = _branch_data(leg, B[i], zl[:, 0], zl[:, 1])
             for _ in range(passes):
                 f_ = data["force"]
-                fscale = m.EI[i] / data["length"] ** 2
+                fscale = leg.rod.EI / data["length"] ** 2
                 jump = np.max(np.abs(np.diff(f_, axis=0)), axis=1)
                 lim = force_tol * (np.minimum(fscale[:-1], fscale[1:]) + np.hypot(*f_[:-1].T))
                 bad = np.flatnonzero(jump > lim)
@@ -114,17 +100,17 @@ def leg_curves(m: MechArrays, B: NDArray[np.float64], max_mode: int, *, force_to
                 mid = _snap(g, 0.5 * (zl[bad] + zl[bad + 1]), zl[bad + 1] - zl[bad],
                             max_shift=0.25 * np.hypot(*(zl[bad + 1] - zl[bad]).T))
                 zl = np.insert(zl, bad + 1, mid, axis=0)
-                data = _branch_data(m, i, kind, B[i], zl[:, 0], zl[:, 1])
+                data = _branch_data(leg, B[i], zl[:, 0], zl[:, 1])
             if mask_f is not None:  # length legs: keep the ray, not its opposite
                 t = tip_chart(zl[:, 0], zl[:, 1])
                 if not np.all(mask_f(t.x, t.y)):
                     keep = mask_f(t.x, t.y)
                     for piece in np.split(np.arange(len(zl)), np.flatnonzero(np.diff(keep.astype(int))) + 1):
                         if keep[piece[0]] and len(piece) >= 2:
-                            branches.append(_branch_data(m, i, kind, B[i], zl[piece, 0], zl[piece, 1]))
+                            branches.append(_branch_data(leg, B[i], zl[piece, 0], zl[piece, 1]))
                     continue
             branches.append(data)
-        out.append(LegCurve(i, kind, tuple(branches)))
+        out.append(LegCurve(i, leg.actuation, tuple(branches)))
     return out
 
 
@@ -157,27 +143,12 @@ def _snap(g, z: NDArray[np.float64], direction: NDArray[np.float64] | None = Non
     return np.where(ok[:, None], p, z)
 
 
-def _branch_data(m: MechArrays, i: int, kind: int, B, v, phis) -> dict[str, NDArray]:
+def _branch_data(leg, B, v, phis) -> dict[str, NDArray]:
     t = tip_chart(v, phis)
     ku = np.tanh(v)
-    A = m.origin[i]
-    d = B - A
-    if kind == PRISMATIC:
-        alpha = np.full_like(ku, m.angle[i])
-        L = np.full_like(ku, m.length[i])
-        u = np.cos(m.angle[i]) * d[0] + np.sin(m.angle[i]) * d[1] - L * t.x
-    elif kind == REVOLUTE:
-        L = np.full_like(ku, m.length[i])
-        alpha = np.arctan2(d[1], d[0]) - np.arctan2(t.y, t.x)
-        alpha = np.unwrap(alpha)
-        u = alpha
-    else:
-        alpha = np.full_like(ku, m.angle[i])
-        L = np.hypot(*d) / np.hypot(t.x, t.y)
-        u = L
-    psi_w = alpha + t.psi
-    F = m.EI[i] / L**2 * t.R
-    force = np.stack([F * np.cos(psi_w), F * np.sin(psi_w)], -1)
+    u, alpha, L = leg.actuator.from_tip(B, t.x, t.y)
+    F = leg.rod.EI / L**2 * t.R
+    force = rotate(np.stack([np.cos(t.psi), np.sin(t.psi)], -1), alpha) * F[:, None]
     k, psi, q = to_paper(ku, phis)
     return {"v": v, "ku": ku, "phis": phis, "k": k, "psi": psi, "kr": kr_from_k(k, psi), "mode": mode_of(phis),
             "input": u, "force": force, "length": L}

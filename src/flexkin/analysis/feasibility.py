@@ -2,7 +2,7 @@
 
 The kinematics report *every* equilibrium; this module says which of them a real device can
 actually take, and why not.  :func:`check_feasibility` runs five independent checks on one
-:class:`~flexkin.kinematics.results.Solution` and returns a frozen :class:`Feasibility`:
+:class:`~flexkin.results.Solution` and returns a frozen :class:`Feasibility`:
 
 1. **rod–rod contact** (different rods).  The centre lines, sampled at ``n_samples`` points
    uniformly in arc length (:meth:`RodState.shape`), are polylines.  Two rods collide if

@@ -1,0 +1,117 @@
+"""Kinematic Jacobians (paper §4.4, Eq. 16) by the implicit-function theorem.
+
+The refined equations ``G(z, x, rho) = 0`` (:mod:`flexkin.system`; ``z`` the rods' chart
+coordinates, ``x`` the pose, ``rho`` the inputs) define the solution branch through an
+equilibrium.  Differentiating along it with the load held fixed,
+
+    G_z dz + G_x dx + G_rho drho = 0,
+
+gives the two Jacobians of Eq. (16),
+
+    dx   = J_IK drho,   J_IK = -[A_FK^-1 G_rho]_x,   A_FK = [G_z  G_x],
+    drho = J_FK dx,     J_FK = -[A_IK^-1 G_x]_rho,   A_IK = [G_z  G_rho],
+
+(``A_FK`` is the Newton matrix of the forward kinematics, ``A_IK`` that of the inverse
+kinematics) and ``J_IK J_FK = I`` where both exist.  An **IK singularity** is where ``A_IK``
+is singular (``det J_IK -> 0``, ``J_FK`` blows up; the IK solution folds, typically on the
+workspace boundary), an **FK singularity** where ``A_FK`` is singular (``det J_FK -> 0``;
+with the actuators locked the platform gains a zero-stiffness direction, where stability
+changes).  ``det A_IK`` and ``det A_FK`` scaled by their column norms are smooth along a
+branch and change sign at those singularities.
+
+Units: dimensionless.  Positions and prismatic/length inputs are measured in the
+mechanism's length scale ``L_ref`` (:attr:`flexkin.mechanism.Mechanism.length_scale`),
+angles and revolute inputs in radians; so ``J_IK`` maps ``(drho / L_ref or dphi)`` to
+``(dx / L_ref, dy / L_ref, dtheta)``.  The partial derivatives are analytic (closed form).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..results import Jacobians
+from ..system import System
+
+__all__ = ["JacobianArrays", "kinematic_jacobians", "system_blocks"]
+
+#: condition number beyond which a Newton matrix counts as singular
+SINGULAR_COND = 1e14
+
+
+def system_blocks(system: System, X: NDArray, charts: NDArray, load: NDArray
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """``(G_z, G_x, G_rho)`` of the scaled equations with respect to the chart coordinates, the
+    dimensionless pose ``(x/L_ref, y/L_ref, theta)`` and the dimensionless inputs."""
+    _, J = system.jacobian(X, charts, load)
+    lay = system.layout
+    sx = np.array([system.L_ref, system.L_ref, 1.0])
+    su = system.input_scale()
+    return J[:, :, :lay.n_rod], J[:, :, lay.pose] * sx, J[:, :, lay.inputs] * su
+
+
+def _scaled_det(A: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``det A`` divided by the product of its column norms (in [-1, 1], same sign)."""
+    norms = np.linalg.norm(A, axis=1)
+    return np.linalg.det(A / np.where(norms > 0, norms, 1.0)[:, None, :])
+
+
+@dataclass(frozen=True)
+class JacobianArrays:
+    """Jacobians of ``n`` equilibria (see the module docstring).
+
+    Attributes
+    ----------
+    J_IK, J_FK : (n, 3, 3); ``inf`` entries where they do not exist.
+    det_ik, det_fk, cond : (n,)
+    sing_ik, sing_fk : (n,) scaled ``det A_IK`` and ``det A_FK``.
+    """
+
+    J_IK: NDArray[np.float64]
+    J_FK: NDArray[np.float64]
+    det_ik: NDArray[np.float64]
+    det_fk: NDArray[np.float64]
+    cond: NDArray[np.float64]
+    sing_ik: NDArray[np.float64]
+    sing_fk: NDArray[np.float64]
+
+    def item(self, i: int, L_ref: float = 1.0) -> Jacobians:
+        """The :class:`~flexkin.results.Jacobians` of equilibrium ``i``."""
+        def mat(a):
+            return a.copy() if np.all(np.isfinite(a)) else None
+
+        return Jacobians(mat(self.J_IK[i]), mat(self.J_FK[i]), float(self.det_ik[i]), float(self.det_fk[i]),
+                         float(self.cond[i]), float(self.sing_ik[i]), float(self.sing_fk[i]), L_ref)
+
+
+def _solve_block(A: NDArray, B: NDArray, rows: slice) -> NDArray:
+    """``-[A^-1 B]`` restricted to ``rows``, ``inf`` where ``A`` is numerically singular."""
+    out = np.full(B.shape[:1] + (3, 3), np.inf)
+    with np.errstate(all="ignore"):
+        c = np.linalg.cond(A) if len(A) else np.zeros(0)
+    ok = c < SINGULAR_COND
+    if np.any(ok):
+        out[ok] = -np.linalg.solve(A[ok], B[ok])[:, rows, :]
+    return out
+
+
+def kinematic_jacobians(system: System, X: NDArray, charts: NDArray, load: NDArray) -> JacobianArrays:
+    """J_IK and J_FK (Eq. 16) at ``n`` refined equilibria ``X`` (n, n_unknowns)."""
+    Gz, Gx, Gu = system_blocks(system, X, charts, load)
+    nz = Gz.shape[2]
+    A_ik = np.concatenate([Gz, Gu], axis=2)
+    A_fk = np.concatenate([Gz, Gx], axis=2)
+    J_IK = _solve_block(A_fk, Gu, slice(nz, nz + 3))
+    J_FK = _solve_block(A_ik, Gx, slice(nz, nz + 3))
+    n = len(Gz)
+    with np.errstate(invalid="ignore", over="ignore"):
+        fin_ik = np.all(np.isfinite(J_IK), axis=(1, 2))
+        fin_fk = np.all(np.isfinite(J_FK), axis=(1, 2))
+        det_ik = np.where(fin_ik, np.linalg.det(np.where(np.isfinite(J_IK), J_IK, 0.0)), np.inf)
+        det_fk = np.where(fin_fk, np.linalg.det(np.where(np.isfinite(J_FK), J_FK, 0.0)), np.inf)
+        cond = np.full(n, np.inf)
+        if np.any(fin_fk):
+            cond[fin_fk] = np.linalg.cond(J_FK[fin_fk])
+    return JacobianArrays(J_IK, J_FK, det_ik, det_fk, cond, _scaled_det(A_ik), _scaled_det(A_fk))

@@ -1,0 +1,372 @@
+"""Result objects of every solver: one base class, one :class:`Solution`.
+
+Every solver returns a frozen :class:`Result` with ``solutions``, ``complete``, ``message``,
+``elapsed``, typed ``diagnostics``, ``to_dict()`` (the SPEC §4 JSON contract) and
+``plot()``.  "No solution" is an empty result with a ``message``; solvers never print.
+
+A :class:`Solution` holds arrays and knows its mechanism, so ``to_dict()`` needs no
+arguments.  Units inside are SI and radians; ``to_dict`` converts angles to degrees.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Iterator
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .rod.state import RodState
+
+__all__ = ["Stability", "Jacobians", "Solution", "Result", "KinematicsResult", "IKDiagnostics",
+           "FKDiagnostics", "finite_or_none"]
+
+
+def finite_or_none(v: Any) -> float | None:
+    """``float(v)`` if finite, else ``None`` (the JSON contract never carries NaN)."""
+    if v is None:
+        return None
+    v = float(v)
+    return v if np.isfinite(v) else None
+
+
+def _matrix(a: NDArray | None) -> list[list[float]] | None:
+    return None if a is None or not np.all(np.isfinite(a)) else np.asarray(a).tolist()
+
+
+@dataclass(frozen=True)
+class Stability:
+    """Stability of an equilibrium with the actuators locked (paper §4.3).
+
+    Attributes
+    ----------
+    stable : bool or None
+        ``None`` when the smallest eigenvalue of the second variation is below the
+        resolution the computation can guarantee (``note`` says why).
+    margin : float
+        Smallest eigenvalue of the dimensionless second variation
+        (:mod:`flexkin.analysis.stability`); positive iff stable.
+    index : int or None
+        Number of negative eigenvalues (unstable directions) where resolved.
+    resolution : float
+        The guaranteed resolution of ``margin``.
+    note : str
+        Why the verdict is undecided, or ``""``.
+    """
+
+    stable: bool | None
+    margin: float
+    index: int | None
+    resolution: float = 0.0
+    note: str = ""
+
+
+@dataclass(frozen=True, eq=False)
+class Jacobians:
+    """Kinematic Jacobians of Eq. (16) at an equilibrium (:mod:`flexkin.analysis.jacobian`).
+
+    ``J_IK`` (``dx = J_IK drho``) and ``J_FK`` (``drho = J_FK dx``) are dimensionless: positions
+    and prismatic/length inputs in units of the mechanism's length scale ``L_ref``, angles in
+    radians.  ``None`` where the Jacobian does not exist (at an FK, resp. IK, singularity).
+    ``sing_ik``, ``sing_fk`` are the scaled determinants of the IK and FK Newton matrices,
+    smooth along a branch and zero at IK and FK singularities.
+    """
+
+    J_IK: NDArray[np.float64] | None
+    J_FK: NDArray[np.float64] | None
+    det_ik: float
+    det_fk: float
+    cond: float
+    sing_ik: float
+    sing_fk: float
+    L_ref: float = 1.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready entry (SPEC §4); non-finite values are ``None``."""
+        return {"det_ik": finite_or_none(self.det_ik), "det_fk": finite_or_none(self.det_fk),
+                "cond": finite_or_none(self.cond), "J_IK": _matrix(self.J_IK), "J_FK": _matrix(self.J_FK),
+                "sing_ik": finite_or_none(self.sing_ik), "sing_fk": finite_or_none(self.sing_fk),
+                "units": f"dimensionless: lengths in L_ref = {self.L_ref:.6g} m, angles in rad"}
+
+
+@dataclass(frozen=True, eq=False)
+class Solution:
+    """One equilibrium of the mechanism.
+
+    Attributes
+    ----------
+    mechanism : Mechanism
+    pose : tuple of 3 floats
+        ``(x, y, theta)`` of the platform reference point P (m, m, rad).
+    inputs : tuple of 3 floats
+        Actuator inputs (SI: m for prismatic and length legs, rad for revolute legs).
+    modes : tuple of int
+        d-mode of each rod (SPEC §2).
+    rods : tuple of RodState
+        The three rods in the world frame.
+    x : ndarray
+        The equation system's unknowns at this solution (:class:`flexkin.system.Layout`).
+    charts : ndarray (3,)
+        The rods' charts (:mod:`flexkin.rod.kernels`).
+    residual : float
+        Infinity norm of the scaled residual after refinement.
+    stability : Stability or None
+    jacobian : Jacobians or None
+    verified : bool or None
+        Independent a-posteriori check (:mod:`flexkin.analysis.verify`); ``None`` if not run.
+    condition : float or None
+        Estimated condition number of the Newton system at the solution.
+    id : int
+        1-based number of the solution in its result, the same in tables, JSON, figures and
+        the ``path --solution`` option.
+    """
+
+    mechanism: Any = field(repr=False)
+    pose: tuple[float, float, float]
+    inputs: tuple[float, float, float]
+    modes: tuple[int, ...]
+    rods: tuple[RodState, ...]
+    x: NDArray[np.float64] = field(repr=False)
+    charts: NDArray[np.int64] = field(repr=False)
+    residual: float = 0.0
+    stability: Stability | None = None
+    jacobian: Jacobians | None = field(default=None, repr=False)
+    verified: bool | None = None
+    condition: float | None = None
+    verify_error: float | None = field(default=None, repr=False)
+    id: int = 0
+
+    # ---- conveniences --------------------------------------------------------------------
+    @property
+    def stable(self) -> bool | None:
+        """Stability verdict (``None``: undecided)."""
+        return None if self.stability is None else self.stability.stable
+
+    @property
+    def stability_margin(self) -> float | None:
+        """Smallest eigenvalue of the dimensionless second variation."""
+        return None if self.stability is None else self.stability.margin
+
+    @property
+    def stability_index(self) -> int | None:
+        """Number of unstable directions, where resolved."""
+        return None if self.stability is None else self.stability.index
+
+    @property
+    def zrod(self) -> NDArray[np.float64]:
+        """The rods' chart coordinates (the leading columns of :attr:`x`)."""
+        return self.x[: len(self.x) - 6]
+
+    @property
+    def energy(self) -> float:
+        """Total bending energy of the three rods (J)."""
+        return float(sum(r.energy for r in self.rods))
+
+    @property
+    def mode_label(self) -> str:
+        """d-modes as a string, e.g. ``"112"``."""
+        return "".join(str(q) for q in self.modes)
+
+    def inputs_display(self) -> list[float]:
+        """Inputs in display units (m, or degrees for revolute legs)."""
+        return [float(leg.to_display(u)) for u, leg in zip(self.inputs, self.mechanism.legs)]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (SPEC §4)."""
+        st = self.stability
+        d: dict[str, Any] = {
+            "id": self.id,
+            "pose": [float(self.pose[0]), float(self.pose[1]), float(np.degrees(self.pose[2]))],
+            "inputs": self.inputs_display(),
+            "modes": list(self.modes),
+            "stable": None if st is None else st.stable,
+            "stability_margin": None if st is None else finite_or_none(st.margin),
+            "stability_index": None if st is None else st.index,
+        }
+        if st is not None and st.note:
+            d["stability_note"] = st.note
+        d.update({
+            "residual": float(self.residual),
+            "verified": self.verified,
+            "condition": finite_or_none(self.condition),
+            "energy": self.energy,
+            "rods": [r.to_dict() for r in self.rods],
+            "jacobian": None if self.jacobian is None else self.jacobian.to_dict(),
+        })
+        return d
+
+
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class IKDiagnostics:
+    """What the inverse kinematics did: curve branches per leg, equilibrium candidates, Newton
+    convergences, whether the global search completed, and the size of a singular continuum
+    (0 when none)."""
+
+    branches: tuple[int, ...] = ()
+    candidates: int = 0
+    converged: int = 0
+    search_complete: bool = True
+    continuum: int = 0
+
+
+@dataclass(frozen=True)
+class FKDiagnostics:
+    """What the forward kinematics did: starting points from the branch-and-bound, Newton
+    convergences, whether the search completed, node triples examined, singular continuum."""
+
+    candidates: int = 0
+    converged: int = 0
+    search_complete: bool = True
+    nodes: int = 0
+    continuum: int = 0
+
+
+@dataclass(frozen=True)
+class Result:
+    """Base of every solver result.
+
+    Attributes
+    ----------
+    solutions : tuple
+        The solutions (possibly empty: then ``message`` explains).
+    complete : bool
+        ``False`` when a search or a budget was cut short.
+    message : str
+        One line explaining an empty or incomplete result.
+    elapsed : float
+        Seconds.
+    diagnostics : dataclass
+        Typed counters of the solver.
+    """
+
+    solutions: tuple = ()
+    complete: bool = True
+    message: str = ""
+    elapsed: float = 0.0
+    diagnostics: Any = field(default=None, repr=False)
+
+    def __len__(self) -> int:
+        return len(self.solutions)
+
+    def __iter__(self) -> Iterator:
+        return iter(self.solutions)
+
+    def to_dict(self) -> dict[str, Any]:  # pragma: no cover - every subclass overrides
+        """JSON-ready dict."""
+        raise NotImplementedError
+
+    def plot(self, path: str | None = None, **kwargs: Any):  # pragma: no cover
+        """A figure of the result (matplotlib, imported lazily); saved when ``path`` is given."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class KinematicsResult(Result):
+    """All equilibria found by an inverse or forward kinematics call.
+
+    Attributes
+    ----------
+    problem : ``"ik"`` or ``"fk"``.
+    mechanism : the :class:`~flexkin.mechanism.Mechanism`.
+    given : the pose (IK; rad) or the inputs (FK; SI) that were imposed.
+    load : (Fx, Fy, Mz).
+    max_mode : largest d-mode searched.
+    curves : the geometric-condition curves (IK), else ``None``.
+    """
+
+    problem: str = "ik"
+    mechanism: Any = field(default=None, repr=False)
+    given: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    load: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    max_mode: int = 2
+    curves: Any = field(default=None, repr=False)
+    _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def kinds(self) -> tuple[str, ...]:
+        """Actuation of each leg."""
+        return tuple(leg.actuation for leg in self.mechanism.legs)
+
+    def by_modes(self) -> dict[str, int]:
+        """Number of solutions per d-mode combination, e.g. ``{"111": 5, "222": 2}``."""
+        out: dict[str, int] = {}
+        for s in self.solutions:
+            out[s.mode_label] = out.get(s.mode_label, 0) + 1
+        return out
+
+    def feasibility(self) -> tuple[Any, ...]:
+        """Feasibility of every solution (:func:`~flexkin.analysis.feasibility.check_feasibility`:
+        collisions, self-intersection, bending strain, input ranges), computed once, on demand."""
+        if "feasibility" not in self._cache:
+            from .analysis.feasibility import check_solutions
+
+            self._cache["feasibility"] = check_solutions(self.mechanism, self.solutions)
+        return self._cache["feasibility"]
+
+    def select(self, stable_only: bool = False, feasible_only: bool = False) -> "KinematicsResult":
+        """A copy keeping only the stable (``stable is True``) and/or feasible solutions; every
+        solution keeps its :attr:`Solution.id`."""
+        keep = [True] * len(self.solutions)
+        if stable_only:
+            keep = [k and s.stable is True for k, s in zip(keep, self.solutions)]
+        if feasible_only:
+            keep = [k and f.feasible for k, f in zip(keep, self.feasibility())]
+        sols = tuple(s for k, s in zip(keep, self.solutions) if k)
+        out = dataclasses.replace(self, solutions=sols, _cache={})
+        if "feasibility" in self._cache:
+            out._cache["feasibility"] = tuple(f for k, f in zip(keep, self._cache["feasibility"]) if k)
+        if not sols and self.solutions:
+            what = " and ".join(w for w, on in (("stable", stable_only), ("feasible", feasible_only)) if on)
+            out = dataclasses.replace(out, message=f"none of the {len(self.solutions)} equilibria is {what}")
+        return out
+
+    def to_dict(self, feasibility: bool = True) -> dict[str, Any]:
+        """The SPEC §4 JSON object; with ``feasibility`` each solution carries its ``feasible``
+        verdict and reasons (computed on demand)."""
+        d: dict[str, Any] = {
+            "problem": self.problem,
+            "mechanism": self.mechanism.name,
+            "load": list(self.load),
+            "max_mode": self.max_mode,
+        }
+        if self.problem == "ik":
+            d["pose"] = [self.given[0], self.given[1], float(np.degrees(self.given[2]))]
+        else:
+            d["inputs"] = [float(leg.to_display(u)) for u, leg in zip(self.given, self.mechanism.legs)]
+        d["complete"] = self.complete
+        d["message"] = self.message
+        feas = self.feasibility() if feasibility else (None,) * len(self.solutions)
+        sols = []
+        for s, f in zip(self.solutions, feas):
+            e = s.to_dict()
+            if f is not None:
+                e["feasible"] = f.feasible
+                e["feasibility"] = f.to_dict()
+            sols.append(e)
+        d["solutions"] = sols
+        return d
+
+    def table(self) -> str:
+        """Human-readable table of the solutions."""
+        units = [leg.input_unit for leg in self.mechanism.legs]
+        head = (f"{'#':>3} {'modes':>5} {'x [m]':>10} {'y [m]':>10} {'th [deg]':>9} "
+                + " ".join(f"{'u' + str(i + 1) + ' [' + u + ']':>11}" for i, u in enumerate(units))
+                + f" {'energy [J]':>11} {'stable':>6} {'residual':>9}")
+        lines = [head, "-" * len(head)]
+        for s in self.solutions:
+            u = s.inputs_display()
+            st = "?" if s.stable is None else ("yes" if s.stable else "no")
+            lines.append(
+                f"{s.id:>3} {s.mode_label:>5} {s.pose[0]:>10.5f} {s.pose[1]:>10.5f} {np.degrees(s.pose[2]):>9.3f} "
+                + " ".join(f"{v:>11.5f}" for v in u)
+                + f" {s.energy:>11.4e} {st:>6} {s.residual:>9.1e}"
+            )
+        return "\n".join(lines)
+
+    def plot(self, path: str | None = None, **kwargs: Any):
+        """One panel per solution with the deformed rods (paper Figs. 10-16)."""
+        from .plot.solutions import plot_solutions
+
+        return plot_solutions(self, path=path, **kwargs)

@@ -1,0 +1,149 @@
+"""From refined candidates to reported solutions (shared by IK and FK).
+
+1. keep converged candidates whose rods are in scope and of d-mode <= ``max_mode``;
+2. canonical inputs and pose (angles wrapped into ``(-pi, pi]``);
+3. one solution per equilibrium (:func:`distinct`);
+4. stability, Jacobians (batched, :mod:`flexkin.analysis`);
+5. :class:`~flexkin.results.Solution` objects sorted by (d-modes, energy, inputs, pose) and
+   numbered from 1.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..analysis.jacobian import kinematic_jacobians
+from ..analysis.stability import mechanism_stability
+from ..core.geometry2d import wrap_to_pi
+from ..results import Solution, Stability
+from ..rod.atlas import in_scope
+from ..rod.closed_form import mode_of, standard_chart
+from ..rod.kernels import CHART_WRENCH
+from ..rod.state import RodState
+from ..system import System
+
+__all__ = ["finish_solutions", "build_solutions", "distinct", "canonical", "rod_modes"]
+
+
+def canonical(system: System, X: NDArray) -> NDArray[np.float64]:
+    """Angles of the unknowns in ``(-pi, pi]``: revolute inputs and the platform orientation."""
+    X = np.array(X, dtype=float)
+    lay = system.layout
+    u = X[:, lay.inputs]
+    u[:, system.angular] = wrap_to_pi(u[:, system.angular])
+    X[:, lay.inputs] = u
+    X[:, lay.pose.start + 2] = wrap_to_pi(X[:, lay.pose.start + 2])
+    return X
+
+
+def rod_modes(system: System, X: NDArray, charts: NDArray) -> NDArray[np.int64]:
+    """d-mode of every rod (n, 3)."""
+    modes = np.ones((len(X), 3), np.int64)
+    for i in range(3):
+        z = X[:, system.layout.rod[i]]
+        pinned = charts[:, i] != CHART_WRENCH
+        if np.any(pinned):
+            _, ph = standard_chart(z[pinned, 0], z[pinned, 1])
+            modes[pinned, i] = mode_of(ph)
+    return modes
+
+
+def _in_scope(system: System, X: NDArray, charts: NDArray) -> NDArray[np.bool_]:
+    ok = np.ones(len(X), bool)
+    for i in range(3):
+        pinned = charts[:, i] != CHART_WRENCH
+        if np.any(pinned):
+            z = X[pinned][:, system.layout.rod[i]]
+            v, _ = standard_chart(z[:, 0], z[:, 1])
+            ok[pinned] &= in_scope(v[:, None])
+    return ok
+
+
+def distinct(system: System, X: NDArray, charts: NDArray, residual: NDArray,
+             diag: dict[str, Any] | None = None) -> NDArray[np.int64]:
+    """Indices of one candidate per equilibrium (the smallest residual of each).
+
+    Two candidates are the same equilibrium when their rods' tip forces and base moments,
+    the pose and the inputs agree to 1e-6 (scaled).  A continuum -- the same geometry (pose,
+    inputs, rod tip angles) carrying different forces -- happens only where straight rods take
+    axial force freely (a singular configuration); one representative, the least loaded, is kept.
+    """
+    if len(X) == 0:
+        return np.zeros(0, np.int64)
+    lay = system.layout
+    w = system.rod_world(X, charts)
+    sx = np.array([system.L_ref, system.L_ref, 1.0])
+    su = system.input_scale()
+    keys = np.concatenate([w["force"].reshape(-1, 6) / system.F_ref,
+                           w["base_moment"] / (system.F_ref * system.L_ref),
+                           X[:, lay.pose] / sx, X[:, lay.inputs] / su], axis=1)
+    order = np.argsort(residual, kind="stable")
+    chosen: list[int] = []
+    for i in order:
+        if not chosen or np.min(np.max(np.abs(keys[chosen] - keys[i]), axis=1)) > 1e-6:
+            chosen.append(int(i))
+    geo = np.concatenate([X[:, lay.pose] / sx, X[:, lay.inputs] / su,
+                          np.cos(w["tip_angle"]), np.sin(w["tip_angle"])], axis=1)[chosen]
+    fmag = np.sum(np.abs(w["force"].reshape(-1, 6)), axis=1)[chosen]
+    keep: list[int] = []
+    for a in np.argsort(fmag, kind="stable"):
+        if not keep or np.min(np.max(np.abs(geo[keep] - geo[a]), axis=1)) > 1e-8:
+            keep.append(int(a))
+    if diag is not None and len(keep) < len(chosen):
+        diag["continuum"] = len(chosen) - len(keep) + 1
+    return np.array(sorted(chosen[a] for a in keep), dtype=np.int64)
+
+
+def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual: NDArray, max_mode: int,
+                     load: NDArray, diag: dict[str, Any] | None = None) -> list[Solution]:
+    """Reported solutions from refined candidates (module docstring)."""
+    X = canonical(system, X)
+    modes = rod_modes(system, X, charts)
+    ok = np.all(modes <= max_mode, axis=1) & _in_scope(system, X, charts) & np.all(np.isfinite(X), axis=1)
+    X, charts, residual, modes = X[ok], charts[ok], residual[ok], modes[ok]
+    if len(X) == 0:
+        return []
+    idx = distinct(system, X, charts, residual, diag)
+    sols = build_solutions(system, mech, X[idx], charts[idx], load, residual[idx], modes[idx])
+    escale = system.F_ref * system.L_ref
+    sols.sort(key=lambda s: (s.modes, round(s.energy / escale, 9), tuple(s.inputs), tuple(s.pose)))
+    return [_with_id(s, k + 1) for k, s in enumerate(sols)]
+
+
+def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDArray,
+                    residual: NDArray | None = None, modes: NDArray | None = None) -> list[Solution]:
+    """:class:`~flexkin.results.Solution` objects (with stability and Jacobians) for equilibria
+    ``X`` (n, n_unknowns) in ``charts`` (n, 3); residuals are recomputed when not given."""
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    charts = np.atleast_2d(np.asarray(charts, dtype=np.int64))
+    if len(X) == 0:
+        return []
+    if residual is None:
+        residual = np.max(np.abs(system.residual(X, charts, load)), axis=1)
+    if modes is None:
+        modes = rod_modes(system, X, charts)
+    stab = mechanism_stability(system, X, charts)
+    jac = kinematic_jacobians(system, X, charts, load)
+    q, _ = system.unit_rods(X, charts)
+    lay = system.layout
+    A, alpha, L = system.clamps(X[:, lay.inputs])
+    sols = []
+    for j in range(len(X)):
+        rods = tuple(RodState.from_unit(q[j, i], int(charts[j, i]), X[j, lay.rod[i]], L[j, i], system.EI[i],
+                                        A[j, i], alpha[j, i], int(modes[j, i]), mech.legs[i].joint)
+                     for i in range(3))
+        st = Stability(bool(stab.stable[j]), float(stab.margin[j]), int(stab.index[j]))
+        sols.append(Solution(mech, tuple(float(v) for v in X[j, lay.pose]), tuple(float(v) for v in X[j, lay.inputs]),
+                             tuple(int(v) for v in modes[j]),
+                             rods, X[j].copy(), charts[j].copy(), float(residual[j]), st,
+                             jac.item(j, system.L_ref)))
+    return sols
+
+
+def _with_id(s: Solution, k: int) -> Solution:
+    import dataclasses
+
+    return dataclasses.replace(s, id=k)

@@ -1,0 +1,136 @@
+"""Full inverse kinematics: every equilibrium for a pose and a load (paper §4).
+
+Procedure (paper §4.1-4.2, made global):
+
+1. per leg, the geometric-condition curves on the atlas of all d-modes <= ``max_mode``
+   (:mod:`flexkin.solve.curves`, Fig. 7);
+2. every triple of curve points in platform equilibrium with the load (Eq. 15), found by
+   subdivision over the three polylines in wrench space (:mod:`flexkin.solve.equilibrium`);
+3. the Newton corrector on the full equation system (:mod:`flexkin.solve.corrector`) to a
+   scaled residual <= :data:`RESIDUAL_TOL`, then one solution per equilibrium, stability and
+   Jacobians (:mod:`flexkin.solve.finish`), sorted by (d-modes, energy).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..core.validation import as_triple, check_budget, check_max_mode
+from ..results import IKDiagnostics, KinematicsResult, Solution
+from ..system import System
+from .corrector import newton
+from .curves import leg_curves
+from .equilibrium import equilibrium_triples
+from .finish import finish_solutions
+
+__all__ = ["ik", "refine_ik", "RESIDUAL_TOL", "as_load"]
+
+#: acceptance threshold on the scaled residual of a refined solution
+RESIDUAL_TOL = 1e-10
+
+
+def as_load(mech, load: ArrayLike | None) -> NDArray[np.float64]:
+    """The load wrench: ``load`` if given, else the mechanism file's ``[load]``."""
+    return as_triple(mech.load if load is None else load, "load (Fx, Fy, Mz)")
+
+
+def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *,
+       stable_only: bool = False, time_budget: float | None = None) -> KinematicsResult:
+    """All equilibria of ``mech`` at platform ``pose`` under ``load`` (paper §4).
+
+    Parameters
+    ----------
+    mech : Mechanism
+        The mechanism.
+    pose : (x, y, theta)
+        Platform pose, m and **radians**.
+    load : (Fx, Fy, Mz), optional
+        Load wrench on the platform at P; defaults to the mechanism file's ``[load]``.
+    max_mode : int
+        Largest d-mode of any rod (default 2, i.e. the 8 combinations of modes 1-2).
+    stable_only : bool
+        Keep only the stable equilibria (default: all, stable and unstable).
+    time_budget : float, optional
+        Seconds for the global search of step 2; when it runs out, the candidates found so
+        far are refined and the result says ``complete = False``.
+
+    Returns
+    -------
+    KinematicsResult
+        ``problem == "ik"``; ``solutions`` (possibly empty, then ``message`` explains),
+        ``curves`` holds the geometric-condition curves of step 1.
+    """
+    t0 = time.perf_counter()
+    max_mode = check_max_mode(max_mode)
+    pose = as_triple(pose, "pose (x, y, theta)")
+    w = as_load(mech, load)
+    deadline = None if time_budget is None else t0 + check_budget(time_budget)
+    system = System.from_mechanism(mech)
+    B = system.platform_points(pose[None])[0]
+    curves = leg_curves(mech, B, max_mode)
+    diag: dict[str, Any] = {"branches": tuple(len(c) for c in curves)}
+
+    # ---- step 2: equilibrium triples on the polylines (wrench space) -----------------------
+    wscale = system.wrench_scale()
+    p0s, p1s, zs, us = [], [], [], []
+    for i, c in enumerate(curves):
+        arm = B[i] - pose[:2]
+        P0, P1, Z0, Z1, U0, U1 = [], [], [], [], [], []
+        for br in c.branches:
+            f = br["force"]
+            wr = np.stack([f[:, 0], f[:, 1], arm[0] * f[:, 1] - arm[1] * f[:, 0]], -1) / wscale
+            z = np.stack([br["v"], br["phis"]], -1)
+            P0.append(wr[:-1]); P1.append(wr[1:]); Z0.append(z[:-1]); Z1.append(z[1:])
+            U0.append(br["input"][:-1]); U1.append(br["input"][1:])
+        cat = (lambda L, d: np.concatenate(L) if L else np.zeros((0,) + d))
+        p0s.append(cat(P0, (3,))); p1s.append(cat(P1, (3,)))
+        zs.append((cat(Z0, (2,)), cat(Z1, (2,)))); us.append((cat(U0, ()), cat(U1, ())))
+    seg, s, complete = equilibrium_triples(p0s, p1s, w / wscale, deadline=deadline)
+    diag["candidates"] = int(len(seg))
+    diag["search_complete"] = complete
+    if len(seg) == 0:
+        msg = _empty_message(curves) if complete else \
+            "search stopped early (time or node budget) before any candidate was found"
+        return KinematicsResult((), complete, msg, time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech,
+                                tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves)
+    lay = system.layout
+    X = np.zeros((len(seg), lay.n_unknowns))
+    X[:, lay.pose] = pose
+    for i in range(3):
+        a, b = zs[i][0][seg[:, i]], zs[i][1][seg[:, i]]
+        X[:, lay.rod[i]] = a + s[:, i:i + 1] * (b - a)
+        ua, ub = us[i][0][seg[:, i]], us[i][1][seg[:, i]]
+        X[:, lay.inputs.start + i] = ua + s[:, i] * (ub - ua)
+
+    # ---- step 3: Newton on the full equations ----------------------------------------------
+    sols = refine_ik(system, mech, X, system.default_charts(len(X)), w, max_mode, diag)
+    msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
+    if diag.get("continuum"):
+        msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
+               "the least loaded one is reported")
+    if not complete:
+        msg = "search stopped early (time or node budget): the solution list may be incomplete"
+    res = KinematicsResult(tuple(sols), complete, msg, time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech,
+                           tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves)
+    return res.select(stable_only=True) if stable_only else res
+
+
+def refine_ik(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
+              diag: dict[str, Any] | None = None) -> list[Solution]:
+    """Newton-refine IK candidates ``X`` (pose held) and build the solutions."""
+    res = newton(system, X, charts, load, "pose")
+    good = res.residual <= RESIDUAL_TOL
+    if diag is not None:
+        diag["converged"] = int(np.count_nonzero(good))
+    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag)
+
+
+def _empty_message(curves) -> str:
+    empty = [c.leg + 1 for c in curves if len(c) == 0]
+    if empty:
+        return f"pose unreachable: no rod of leg(s) {', '.join(map(str, empty))} can reach its platform point"
+    return "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"

@@ -1,0 +1,381 @@
+"""Following one IK solution along a straight path of poses; singularities and stability on the way.
+
+The path ``x(t) = (1 - t) x_from + t x_to``, ``t`` in [0, 1], is sampled at ``steps + 1``
+points; between samples the solution is continued (:func:`~flexkin.solve.continuation.continue_ik`)
+with steps halved on failure, down to :data:`MIN_SUBSTEP` of the sample spacing.  Along the
+branch, sign changes of the smooth singularity functions ``det A_IK``, ``det A_FK``
+(:mod:`flexkin.analysis.jacobian`), changes of the stability verdict and of the d-modes are
+reported as events located between two samples.
+
+Where the continuation fails even at the smallest sub-step, the branch ends, and the reason
+given follows from what was computed there: an **IK singularity** (the branch folds back,
+typically the workspace boundary) when the IK Newton matrix is numerically singular at the
+last point reached (condition number above :data:`FOLD_COND`) or when its scaled
+determinant, extrapolated from the last two points reached with the square-root law of a
+fold (``det^2`` linear in ``t``), vanishes within the step that failed; otherwise "the
+corrector failed to converge" with the step size and what was measured.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..analysis.jacobian import kinematic_jacobians, system_blocks
+from ..analysis.stability import mechanism_stability
+from ..core.validation import as_triple, check_budget, check_count, check_max_mode
+from ..results import Result, Solution, finite_or_none
+from ..system import System
+from .continuation import SEAM_V, continue_ik
+from .finish import rod_modes
+from .ik import as_load, ik
+
+__all__ = ["follow_path", "PathResult", "PathEvent", "MIN_SUBSTEP", "FOLD_COND"]
+
+#: smallest sub-step, as a fraction of the sample spacing
+MIN_SUBSTEP = 1.0 / 64
+#: condition number of the IK Newton matrix above which a failed step is an IK singularity
+FOLD_COND = 1e6
+
+
+@dataclass(frozen=True)
+class PathEvent:
+    """Something that happens between two samples ``t_lo < t <= t_hi`` of the path.
+
+    ``kind`` is one of ``"ik_singularity"`` (det J_IK changes sign), ``"fk_singularity"``
+    (det J_FK changes sign), ``"stability_lost"``, ``"stability_regained"``,
+    ``"mode_change"`` (followed, not a failure), ``"chart_seam"`` (bridged) and
+    ``"continuation_failed"`` (the branch ends; ``detail`` says why).
+    """
+
+    kind: str
+    t_lo: float
+    t_hi: float
+    detail: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict."""
+        return {"kind": self.kind, "t_lo": self.t_lo, "t_hi": self.t_hi, "detail": self.detail}
+
+
+@dataclass(frozen=True)
+class PathResult(Result):
+    """One IK solution followed along a straight path of poses.
+
+    Array attributes have one row per reached sample: ``t`` (k,), ``poses`` (k, 3) (rad),
+    ``inputs`` (k, 3) (SI, continuous), ``modes`` (k, 3), ``stable`` (k,; undecided samples
+    count as not stable), ``margin`` (k,), ``det_ik``, ``det_fk``, ``cond`` (k,) (Eq. 16,
+    dimensionless; non-finite at singularities), ``sing_ik``, ``sing_fk`` (k,) the smooth
+    singularity functions, ``x`` and ``charts`` the system's unknowns.  ``complete`` is
+    ``True`` when the end of the path was reached.
+    """
+
+    mechanism: Any = field(default=None, repr=False)
+    start: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    end: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    load: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    t: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    poses: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+    inputs: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+    modes: NDArray[np.int64] = field(default_factory=lambda: np.zeros((0, 3), np.int64))
+    stable: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
+    margin: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    det_ik: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    det_fk: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    cond: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    sing_ik: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    sing_fk: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    x: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
+    charts: NDArray[np.int64] = field(default_factory=lambda: np.zeros((0, 3), np.int64), repr=False)
+    events: tuple[PathEvent, ...] = ()
+    start_solution: Solution | None = field(default=None, repr=False)
+
+    @property
+    def kinds(self) -> tuple[str, ...]:
+        """Actuation of each leg."""
+        return tuple(leg.actuation for leg in self.mechanism.legs)
+
+    def inputs_display(self) -> NDArray[np.float64]:
+        """Inputs in display units (m, degrees for revolute legs)."""
+        out = self.inputs.copy()
+        for i, leg in enumerate(self.mechanism.legs):
+            out[:, i] = leg.to_display(out[:, i])
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict; non-finite numbers are ``None``."""
+        pts = []
+        u = self.inputs_display()
+        for j in range(len(self.t)):
+            pts.append({"t": float(self.t[j]),
+                        "pose": [float(self.poses[j, 0]), float(self.poses[j, 1]), float(np.degrees(self.poses[j, 2]))],
+                        "inputs": [float(v) for v in u[j]], "modes": [int(q) for q in self.modes[j]],
+                        "stable": bool(self.stable[j]), "stability_margin": finite_or_none(self.margin[j]),
+                        "jacobian": {"det_ik": finite_or_none(self.det_ik[j]), "det_fk": finite_or_none(self.det_fk[j]),
+                                     "cond": finite_or_none(self.cond[j]), "sing_ik": finite_or_none(self.sing_ik[j]),
+                                     "sing_fk": finite_or_none(self.sing_fk[j])}})
+        return {"problem": "path", "mechanism": self.mechanism.name, "load": list(self.load),
+                "from": [self.start[0], self.start[1], float(np.degrees(self.start[2]))],
+                "to": [self.end[0], self.end[1], float(np.degrees(self.end[2]))],
+                "solution": None if self.start_solution is None else self.start_solution.id,
+                "complete": self.complete, "message": self.message,
+                "events": [e.to_dict() for e in self.events], "points": pts}
+
+    def table(self) -> str:
+        """Human-readable table of the samples, then the events."""
+        units = [leg.input_unit for leg in self.mechanism.legs]
+        head = (f"{'t':>6} {'modes':>5} " + " ".join(f"{'u' + str(i + 1) + ' [' + un + ']':>11}"
+                                                      for i, un in enumerate(units))
+                + f" {'stable':>6} {'margin':>9} {'det J_IK':>10} {'det J_FK':>10}")
+        lines = [head, "-" * len(head)]
+        u = self.inputs_display()
+        for j in range(len(self.t)):
+            lines.append(f"{self.t[j]:>6.3f} {''.join(map(str, self.modes[j])):>5} "
+                         + " ".join(f"{v:>11.5f}" for v in u[j])
+                         + f" {'yes' if self.stable[j] else 'no':>6} {self.margin[j]:>9.3g}"
+                         + f" {self.det_ik[j]:>10.3g} {self.det_fk[j]:>10.3g}")
+        if self.events:
+            lines.append("")
+            lines.append("events:")
+            for e in self.events:
+                lines.append(f"  {e.kind:<20} t in ({e.t_lo:.4f}, {e.t_hi:.4f}]  {e.detail}")
+        if self.message:
+            lines.append(self.message)
+        return "\n".join(lines)
+
+    def plot(self, path: str | None = None, **kwargs: Any):
+        """Inputs, Jacobian determinants and stability margin against the path parameter."""
+        from ..plot.path import plot_path
+
+        return plot_path(self, path=path, **kwargs)
+
+
+def _pose_at(a: NDArray, b: NDArray, t: float) -> NDArray:
+    return (1.0 - t) * a + t * b
+
+
+def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: ArrayLike | None = None,
+                solution: int | Solution | None = None, max_mode: int = 2,
+                time_budget: float | None = None) -> PathResult:
+    """Follow one IK solution from pose ``start`` to pose ``end`` (m, m, rad).
+
+    Parameters
+    ----------
+    mech : Mechanism
+        The mechanism.
+    start, end : (x, y, theta)
+        End poses of the straight path (theta in radians).
+    steps : int
+        Number of path intervals (samples at ``t = j / steps``).
+    load : (Fx, Fy, Mz), optional
+        Defaults to the mechanism file's load.
+    solution : int or Solution, optional
+        The IK solution at ``start`` to follow: its id (1-based, as in ``ik(mech, start)``'s
+        table and JSON) or a :class:`Solution`.  Default: the first stable one (else the first).
+    max_mode : int
+        Passed to the IK at ``start`` when ``solution`` is not a :class:`Solution`.
+    time_budget : float, optional
+        Seconds; when they run out the samples reached so far are returned with
+        ``complete = False`` and a message.
+
+    Returns
+    -------
+    PathResult
+        ``complete`` is ``False`` when the branch ended before ``end`` (then the last event
+        is ``"continuation_failed"`` and its detail says why).
+    """
+    t0 = time.perf_counter()
+    deadline = None if time_budget is None else t0 + check_budget(time_budget)
+    a = as_triple(start, "start pose (x, y, theta)")
+    b = as_triple(end, "end pose (x, y, theta)")
+    steps = check_count(steps, "steps")
+    w = as_load(mech, load)
+    system = System.from_mechanism(mech)
+    base = dict(mechanism=mech, start=tuple(map(float, a)), end=tuple(map(float, b)), load=tuple(map(float, w)))
+    if isinstance(solution, Solution):
+        sol = solution
+    else:
+        res = ik(mech, a, load=w, max_mode=check_max_mode(max_mode))
+        if not res.solutions:
+            return PathResult(complete=False, message=f"no IK solution at the start pose: {res.message}",
+                              elapsed=time.perf_counter() - t0, **base)
+        if solution is None:
+            sol = next((s for s in res.solutions if s.stable), res.solutions[0])
+        else:
+            ids = [s.id for s in res.solutions]
+            if isinstance(solution, bool) or not isinstance(solution, (int, np.integer)) or int(solution) not in ids:
+                raise ValueError(f"solution {solution!r} does not exist: the start pose has {len(ids)} IK solutions "
+                                 f"(ids 1..{len(ids)})")
+            sol = res.solutions[ids.index(int(solution))]
+    x = np.asarray(sol.x, dtype=float)[None].copy()
+    ch = np.asarray(sol.charts, dtype=np.int64)[None].copy()
+    x[0, system.layout.pose] = a
+    xs, cs, ts = [x[0].copy()], [ch[0].copy()], [0.0]
+    t, h = 0.0, 1.0 / steps
+    failed: tuple[float, float] | None = None
+    last = [(0.0, x.copy(), ch.copy())]  # the last accepted points (also between samples)
+    bridged: list[PathEvent] = []
+    j = 0
+    timed_out = False
+    while j < steps:
+        if deadline is not None and time.perf_counter() > deadline:
+            timed_out = True
+            break
+        j += 1
+        if j / steps <= t + 1e-15:
+            continue
+        target = j / steps
+        dt = target - t
+        while t < target - 1e-15:
+            dt = min(dt, target - t)
+            x1, c1, ok = continue_ik(system, x, ch, _pose_at(a, b, t + dt)[None], w)
+            if ok[0]:
+                x, ch, t = x1, c1, t + dt
+                last = (last + [(t, x.copy(), ch.copy())])[-2:]
+                dt = min(2 * dt, h)
+            elif dt > MIN_SUBSTEP * h * 1.0001:
+                dt *= 0.5
+            else:
+                failed = (t, dt)
+                break
+        if failed is not None:
+            # a rod passing straight under tension sits on the seam of the elliptic chart
+            # (|k| -> 1): bridge it with the full IK at the next samples, if a solution there
+            # continues the branch (see _bridge); otherwise the branch has really ended
+            jump = _bridge(mech, system, x[0], ch[0], a, b, j, steps, w, max_mode)
+            if jump is None:
+                break
+            j_new, x_new, c_new = jump
+            bridged.append(PathEvent("chart_seam", float(ts[-1]), j_new / steps,
+                                     "a rod passes straight under tension (|k| = 1): samples inside were "
+                                     "bridged by the full IK"))
+            x, ch, t, failed = x_new[None], c_new[None], j_new / steps, None
+            last = [(t, x.copy(), ch.copy())]
+            ts.append(t)
+            xs.append(x[0].copy())
+            cs.append(ch[0].copy())
+            continue
+        ts.append(target)
+        xs.append(x[0].copy())
+        cs.append(ch[0].copy())
+    X, C, T = np.array(xs), np.array(cs), np.array(ts)
+    P = X[:, system.layout.pose]
+    st = mechanism_stability(system, X, C)
+    jac = kinematic_jacobians(system, X, C, w)
+    modes = rod_modes(system, X, C)
+    stable = np.asarray(st.stable, dtype=bool)
+    events = sorted(_events(T, modes, stable, jac.sing_ik, jac.sing_fk) + bridged, key=lambda e: e.t_lo)
+    msg = ""
+    if failed is not None:
+        t_end, dt_end = failed
+        why = _stop_reason(system, last, w, t_end, dt_end, float(np.linalg.norm((b - a)[:2])))
+        events.append(PathEvent("continuation_failed", float(T[-1]), float(min(T[-1] + h, 1.0)), why))
+        msg = f"continuation stopped: {why}"
+    if timed_out:
+        msg = f"time budget exhausted at t = {T[-1]:.4f}"
+    return PathResult(complete=failed is None and not timed_out, message=msg, elapsed=time.perf_counter() - t0,
+                      t=T, poses=P, inputs=X[:, system.layout.inputs], modes=modes, stable=stable, margin=st.margin,
+                      det_ik=jac.det_ik, det_fk=jac.det_fk, cond=jac.cond, sing_ik=jac.sing_ik, sing_fk=jac.sing_fk,
+                      x=X, charts=C, events=tuple(events), start_solution=sol, **base)
+
+
+def _stop_reason(system: System, last: list, w: NDArray, t_end: float, dt_end: float, span: float) -> str:
+    """Why the branch ended at ``t_end`` (see the module docstring)."""
+    X = np.array([p[1][0] for p in last])
+    C = np.array([p[2][0] for p in last])
+    T = np.array([p[0] for p in last])
+    Gz, _, Gu = system_blocks(system, X, C, w)
+    A = np.concatenate([Gz, Gu], axis=2)
+    with np.errstate(all="ignore"):
+        cond = float(np.linalg.cond(A[-1]))
+        norms = np.linalg.norm(A, axis=1)
+        d = np.linalg.det(A / np.where(norms > 0, norms, 1.0)[:, None, :])
+    t_fold = None
+    if len(T) == 2 and T[1] > T[0] and d[0] ** 2 > d[1] ** 2 and np.sign(d[0]) == np.sign(d[1]):
+        t_fold = T[1] + d[1] ** 2 * (T[1] - T[0]) / (d[0] ** 2 - d[1] ** 2)
+    if not np.isfinite(cond) or cond > FOLD_COND:
+        return (f"IK singularity: the branch folds back near t = {t_end:.4f} (the IK Newton matrix is singular "
+                f"there, condition number {cond:.2g})")
+    if t_fold is not None and t_fold <= t_end + dt_end:
+        return (f"IK singularity: the branch folds back at t = {t_fold:.4f} (det A_IK -> 0, extrapolated from "
+                f"the last points; condition number {cond:.2g} at t = {t_end:.4f})")
+    where = "" if t_fold is None else f", det A_IK extrapolates to zero only at t = {t_fold:.3f}"
+    return (f"the corrector failed to converge at step size h = {dt_end * span:.3g} m (dt = {dt_end:.2g}) near "
+            f"t = {t_end:.4f}; no singularity detected there (condition number of the IK Newton matrix "
+            f"{cond:.2g}{where})")
+
+
+def _near_seam(system: System, x: NDArray, ch: NDArray) -> bool:
+    """Whether a pinned rod is close to the straight-under-tension seam of the chart."""
+    for i in range(3):
+        c = system.layout.rod[i].start
+        if ch[i] == 1 or (ch[i] == 0 and abs(x[c]) > SEAM_V):
+            return True
+    return False
+
+
+def _bridge(mech, system: System, x: NDArray, ch: NDArray, a: NDArray, b: NDArray, j: int, steps: int,
+            w: NDArray, max_mode: int) -> tuple[int, NDArray, NDArray] | None:
+    """Continue the branch across the chart seam by the full IK at the next samples.
+
+    The candidate at sample ``j'`` (up to 3 samples ahead) must have the same d-modes and
+    inputs within a quarter of the predicted change (linear extrapolation with J_FK) of the
+    prediction, so a bridge never lands on another branch.
+    """
+    if not _near_seam(system, x, ch):
+        return None
+    lay = system.layout
+    pose = x[lay.pose]
+    jac = kinematic_jacobians(system, x[None], ch[None], w)
+    if not np.all(np.isfinite(jac.J_FK)):
+        return None
+    su = system.input_scale()
+    sx = np.array([system.L_ref, system.L_ref, 1.0])
+    modes0 = rod_modes(system, x[None], ch[None])[0]
+    for jj in range(j, min(j + 3, steps) + 1):
+        p1 = _pose_at(a, b, jj / steps)
+        du = jac.J_FK[0] @ ((p1 - pose) / sx)
+        pred = x[lay.inputs] / su + du
+        res = ik(mech, p1, load=w, max_mode=max(max_mode, int(modes0.max())))
+        best, dist = None, np.inf
+        for s in res.solutions:
+            if tuple(s.modes) != tuple(modes0):
+                continue
+            d = np.max(np.abs(_unwrap(s.inputs, x[lay.inputs], system) / su - pred))
+            if d < dist:
+                best, dist = s, d
+        if best is not None and dist <= 0.25 * np.max(np.abs(du)) + 1e-6:
+            xn = np.array(best.x, dtype=float)
+            xn[lay.inputs] = _unwrap(best.inputs, x[lay.inputs], system)
+            return jj, xn, np.array(best.charts)
+    return None
+
+
+def _unwrap(u: NDArray, ref: NDArray, system: System) -> NDArray:
+    """Angular inputs shifted by multiples of 2 pi to be closest to ``ref``."""
+    out = np.array(u, dtype=float)
+    rev = system.angular
+    out[rev] = ref[rev] + (out[rev] - ref[rev] + np.pi) % (2 * np.pi) - np.pi
+    return out
+
+
+def _events(T, modes, stable, sing_ik, sing_fk) -> list[PathEvent]:
+    ev: list[PathEvent] = []
+    for j in range(1, len(T)):
+        lo, hi = float(T[j - 1]), float(T[j])
+        if np.sign(sing_ik[j]) != np.sign(sing_ik[j - 1]):
+            ev.append(PathEvent("ik_singularity", lo, hi, "det J_IK changes sign"))
+        if np.sign(sing_fk[j]) != np.sign(sing_fk[j - 1]):
+            ev.append(PathEvent("fk_singularity", lo, hi, "det J_FK changes sign"))
+        if stable[j - 1] and not stable[j]:
+            ev.append(PathEvent("stability_lost", lo, hi))
+        elif stable[j] and not stable[j - 1]:
+            ev.append(PathEvent("stability_regained", lo, hi))
+        if np.any(modes[j] != modes[j - 1]):
+            ev.append(PathEvent("mode_change", lo, hi,
+                                f"d-modes {''.join(map(str, modes[j - 1]))} -> {''.join(map(str, modes[j]))}"))
+    return ev
