@@ -1,357 +1,424 @@
-"""Stability of an equilibrium with the actuators locked (paper §4.3), exactly.
+"""Stability of an equilibrium with the actuators locked (paper §4.3): the smallest eigenvalue
+of the whole second variation, with a guaranteed resolution.
 
-The total potential of the mechanism is
+The potential of the mechanism is
 
-    V = sum_i (EI_i/2) int_0^{L_i} theta_i'(s)^2 ds  -  F . P  -  M theta_P,
+    V = sum_i (EI_i/2) int_0^{L_i} theta_i'(s)^2 ds  -  F . P  -  M theta_P
 
-on the configurations with every rod clamped (actuators locked) and every rod tip pinned to
-its platform point ``B_i = P + Rot(theta_P) b_i``.  An equilibrium is stable when the second
-variation of V is positive definite on the admissible perturbations.  Its index (number of
-unstable directions) is computed exactly, by inertia additivity (Haynsworth) twice:
+on configurations with every rod clamped at its base (actuators locked), its tip at
+``B_i = P + Rot(theta_P) b_i`` and, for a clamped joint, its tip tangent at
+``theta_P + tip_angle_i``.  With the tip forces ``n_i`` and tip moments as the Lagrange
+multipliers of those constraints, the second variation on admissible perturbations
+``(eta_i(s), dq)`` (``eta_i = d theta_i``, ``eta_i(0) = 0``, ``dq = (dP, d theta_P)``) is
 
-1. **each rod with its tip pinned** (the platform held still).  Let ``Q`` be the rod's second
-   variation with its tip force ``n`` treated as a dead load,
-   ``Q[eta] = int EI eta'^2 + (n . t) eta^2 ds`` on ``eta(0) = 0``, and ``C`` the map to the
-   tip displacement.  The bordered matrix ``[[Q, C^T], [C, 0]]`` gives
-   ``index(Q on ker C) = index(Q) - neg(C Q^-1 C^T)``, where ``index(Q)`` follows from
-   Sturm's oscillation theorem (Pruefer angle of the Jacobi field ``u'' = (n . t) u``,
-   :func:`free_index`) and ``C Q^-1 C^T = dp/dn`` is the rod's tip compliance along its
-   family of equilibria, from the closed form (:func:`rod_compliance`).
-2. **the platform**, moving the rod tips: the reduced Hessian of
-   ``V(q) = sum_i U_i(p_i(q)) - F.P - M theta`` over the pose ``q``, where ``U_i(p)`` is the
-   rod's equilibrium energy with its tip at ``p``, ``grad U_i = n_i`` (the force on the tip)
-   and ``hess U_i = K_i = dn_i/dp_i`` (the tip stiffness):
+    Q = sum_i int [ EI_i eta_i'^2 + (n_i . t_i) eta_i^2 ] ds  -  (sum_i n_i . (B_i - P)) d theta_P^2,
 
-       H = sum_i J_i^T K_i J_i  -  diag(0, 0, sum_i n_i . (B_i - P)),   J_i = [I, perp(B_i - P)].
+subject to ``int (-sin theta_i, cos theta_i) eta_i ds = dP + d theta_P perp(B_i - P)`` and, for a
+clamped tip, ``eta_i(L_i) = d theta_P``.  The equilibrium is stable when ``Q`` is positive
+definite there.
 
-The Morse index of the equilibrium is the sum of the rods' pinned indices and the number of
-negative eigenvalues of H; the equilibrium is stable when it is 0.  The same steps give the
-classical cantilever (free tip, dead load) and column (tip on a slider) results
-(:func:`rod_stability`).  Counting the zeros of ``det [dm; dr]`` over the Jacobi fields
-(conjugate points) is *not* enough for these isoperimetric problems: zeros can be crossed in
-either direction (Manning, Rogers & Maddocks 1998), which the inertia formula handles.
+**Margin.**  ``stability_margin`` is the smallest eigenvalue of ``Q`` on the admissible
+subspace with respect to the metric ``sum_i int eta_i^2 ds / L_ref + |dP / L_ref|^2 + d theta_P^2``,
+in units of ``EI_ref / L_ref`` (``L_ref``: the mechanism's length scale, ``EI_ref``: the mean
+bending stiffness).  It includes the rods' own modes (a rod that buckles with its tip held)
+and the platform's (an FK singularity is where it crosses zero).  ``stability_index`` is the
+number of negative eigenvalues (the Morse index).
+
+**Discretisation.**  Each ``eta_i`` is expanded in integrated Legendre polynomials
+(``phi_k' ~ P_{k-1}``, so ``phi_k(0) = 0``), orthonormalised in L^2; the integrals are
+Gauss-Legendre quadratures of the closed-form tangent angle (:mod:`flexkin.rod.kernels`).  The
+eigenvalues converge exponentially in the number of modes ``N`` per rod; ``N`` grows with the
+rods' ``lambda L`` (the scale of their features) and every eigenvalue is computed at two
+resolutions: their difference (with a round-off floor) is the **resolution**.
+
+**Verdict.**  ``stable`` is ``True`` when ``margin > 3 resolution``, ``False`` when
+``margin < -3 resolution`` and ``None`` (undecided, with a ``note``) otherwise, after refining
+up to :data:`N_MAX` modes: a loop held in tension, whose smallest eigenvalue is exponentially
+small (the loop almost translates freely along the rod), comes out ``None`` unless the
+discretisation resolves it.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
-from ..core.jit import njit
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
-from ..core.geometry2d import rot2
-from ..rod.closed_form import standard_chart, tangent_angles, tip_any, tip_chart
+from ..core.jit import njit
+from ..core.linalg_threads import single_threaded_blas
+from ..results import Stability
+from ..rod.closed_form import seam_to_chart
+from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, PHI, tangents
 from ..rod.state import RodState
 from ..system import System
 
-__all__ = ["free_index", "rod_pinned_index", "rod_compliance", "rod_tip_stiffness", "reduced_hessian",
-           "mechanism_stability",
-           "rod_stability", "RodStability", "JACOBI_STEPS"]
+__all__ = ["StabilityArrays", "mechanism_stability", "rod_stability", "RodStability", "output_stiffness",
+           "N_MIN", "N_MAX"]
 
-#: RK4 steps along a unit rod for the Jacobi field (theta sampled at twice this rate)
-JACOBI_STEPS = 256
-
-
-@njit(cache=True)
-def _pruefer_kernel_h(theta: NDArray, force: NDArray, h: float, out_angle: NDArray) -> None:
-    n, ns = theta.shape
-    N = (ns - 1) // 2
-    for r in range(n):
-        fx, fy = force[r, 0], force[r, 1]
-        u, du, ang = 0.0, 1.0, 0.0
-        for j in range(N):
-            q0 = fx * np.cos(theta[r, 2 * j]) + fy * np.sin(theta[r, 2 * j])
-            qm = fx * np.cos(theta[r, 2 * j + 1]) + fy * np.sin(theta[r, 2 * j + 1])
-            q1 = fx * np.cos(theta[r, 2 * j + 2]) + fy * np.sin(theta[r, 2 * j + 2])
-            k1u, k1d = du, q0 * u
-            k2u, k2d = du + 0.5 * h * k1d, qm * (u + 0.5 * h * k1u)
-            k3u, k3d = du + 0.5 * h * k2d, qm * (u + 0.5 * h * k2u)
-            k4u, k4d = du + h * k3d, q1 * (u + h * k3u)
-            u += h / 6.0 * (k1u + 2.0 * k2u + 2.0 * k3u + k4u)
-            du += h / 6.0 * (k1d + 2.0 * k2d + 2.0 * k3d + k4d)
-            nrm = np.sqrt(u * u + du * du)
-            u /= nrm
-            du /= nrm
-            a = np.arctan2(u, du)
-            a += 2.0 * np.pi * np.round((ang - a) / (2.0 * np.pi))
-            ang = a
-        out_angle[r] = ang
+#: modes per rod: the first resolution, and the most the refinement goes to
+N_MIN, N_MAX = 16, 160
+#: relative round-off floor of the resolution
+ROUNDOFF = 1e-13
+#: a constraint whose singular value is below this fraction of the largest is vacuous: to first
+#: order a straight rod's axial constraint does not restrict its perturbations
+RANK_RTOL = 1e-9
 
 
-def free_index(theta: NDArray[np.float64], force: NDArray[np.float64]) -> NDArray[np.int64]:
-    """Index of the second variation of clamped unit rods under their tip force as a dead load.
+# ---- the basis: L2-orthonormal integrated Legendre polynomials on [0, 1] ------------------------
+@dataclass(frozen=True)
+class Basis:
+    """``N`` modes on ``Nq`` Gauss-Legendre nodes of [0, 1]: values ``psi`` (N, Nq), weights
+    ``w`` (Nq,), stiffness ``K = int psi' psi'^T`` (N, N) and tip values ``psi(1)`` (N,)."""
 
-    ``Q[eta] = int eta'^2 + q eta^2 ds``, ``q = n . t`` (``eta(0) = 0``, natural end): by
-    Sturm's oscillation theorem in Pruefer form (``u'' = q u``, ``u(0) = 0``, ``u'(0) = 1``,
-    ``u = r sin(a)``, ``u' = r cos(a)``), the number of negative eigenvalues is the number of
-    ``k >= 0`` with ``a(1) > pi/2 + k pi``.  (Counting the zeros of ``u'`` instead would be
-    wrong: where ``q > 0`` they are crossed backwards.)
+    N: int
+    s: NDArray[np.float64]
+    w: NDArray[np.float64]
+    psi: NDArray[np.float64]
+    K: NDArray[np.float64]
+    tip: NDArray[np.float64]
 
-    Parameters
-    ----------
-    theta : ndarray, shape (n, 2 N + 1)
-        Tangent angle at ``s = linspace(0, 1, 2 N + 1)``.
-    force : ndarray, shape (n, 2)
-        Tip force (unit rod, same frame as ``theta``).
+
+@lru_cache(maxsize=32)
+def basis(N: int) -> Basis:
+    """The orthonormal basis with ``N`` modes (cached)."""
+    nq = 2 * N + 8
+    x, w = np.polynomial.legendre.leggauss(nq)
+    s, w = 0.5 * (x + 1.0), 0.5 * w
+    # phi_k(s) = sqrt(2k - 1) int_0^s P_{k-1}(2t - 1) dt, so int_0^1 phi_k' phi_l' ds = delta_kl
+    P = np.polynomial.legendre.legvander(x, N)           # P_0 .. P_N at the nodes
+    phi = np.empty((N, nq))
+    phi[0] = s
+    for k in range(2, N + 1):
+        phi[k - 1] = np.sqrt(2 * k - 1) * 0.5 * (P[:, k] - P[:, k - 2]) / (2 * k - 1)
+    tip_phi = np.zeros(N)
+    tip_phi[0] = 1.0                                     # phi_k(1) = 0 for k >= 2
+    M = (phi * w) @ phi.T
+    G = np.linalg.cholesky(M)
+    Gi = np.linalg.inv(G)                                 # psi = Gi phi: int psi psi^T = I
+    psi = Gi @ phi
+    K = Gi @ Gi.T
+    for a in (s, w, psi, K):
+        a.setflags(write=False)
+    return Basis(N, s, w, psi, K, Gi @ tip_phi)
+
+
+def _modes_for(Phi: float) -> int:
+    """Modes per rod to start with for a rod with ``lambda L = Phi`` (features of width
+    ~ 1/lambda; measured: about ``3 Phi`` modes give the smallest eigenvalue to 1e-4, and the
+    refinement adds modes where the two resolutions disagree)."""
+    n = max(N_MIN, 2 * int(math.ceil(Phi)) + 8)
+    return int(min(N_MAX, 8 * math.ceil(n / 8)))
+
+
+def _coarse(N: int) -> int:
+    """The nested coarser resolution used to estimate the error at ``N`` modes."""
+    return N - max(6, N // 5)
+
+
+# ---- assembly (compiled) ------------------------------------------------------------------------
+@njit
+def _assemble(theta, force, ell, e, arm, clamped, psi, w, K, tip, Q, C) -> None:
+    """The second variation ``Q`` (p, p) and the constraints ``C`` (m, p) of one equilibrium in
+    the metric-orthonormal coordinates (rod i's modes scaled by ``sqrt(ell_i)``, then the pose).
+
+    ``theta`` (3, Nq) world tangent angles at the nodes, ``force`` (3, 2) tip forces (in F_ref),
+    ``ell``, ``e`` (3,) lengths (L_ref) and stiffnesses (EI_ref), ``arm`` (3, 2) ``B_i - P`` (L_ref).
     """
-    theta = np.ascontiguousarray(theta, dtype=float)
-    f = np.ascontiguousarray(force, dtype=float)
-    ang = np.zeros(theta.shape[0])
-    if theta.shape[0]:
-        _pruefer_kernel_h(theta, f, 1.0 / ((theta.shape[1] - 1) // 2), ang)
-    return np.maximum(0, np.floor((ang - 0.5 * np.pi) / np.pi).astype(np.int64) + 1)
+    N = psi.shape[0]
+    nq = psi.shape[1]
+    Q[:, :] = 0.0
+    C[:, :] = 0.0
+    ip = 3 * N
+    row = 0
+    for i in range(3):
+        c0 = i * N
+        sl = math.sqrt(ell[i])
+        kf = e[i] / (ell[i] * ell[i])
+        for a in range(N):
+            for b in range(N):
+                Q[c0 + a, c0 + b] = kf * K[a, b]
+        for j in range(nq):
+            q = w[j] * (force[i, 0] * math.cos(theta[i, j]) + force[i, 1] * math.sin(theta[i, j]))
+            for a in range(N):
+                qa = q * psi[a, j]
+                for b in range(a, N):
+                    Q[c0 + a, c0 + b] += qa * psi[b, j]
+        for a in range(N):
+            for b in range(a + 1, N):
+                Q[c0 + b, c0 + a] = Q[c0 + a, c0 + b]
+        # tip position: ell int n_perp eta ds_hat = dP + dtheta perp(arm)
+        for j in range(nq):
+            nx = -math.sin(theta[i, j]) * w[j] * sl
+            ny = math.cos(theta[i, j]) * w[j] * sl
+            for a in range(N):
+                C[row, c0 + a] += nx * psi[a, j]
+                C[row + 1, c0 + a] += ny * psi[a, j]
+        C[row, ip] = -1.0
+        C[row + 1, ip + 1] = -1.0
+        C[row, ip + 2] = arm[i, 1]       # -perp(arm)_x = +arm_y
+        C[row + 1, ip + 2] = -arm[i, 0]  # -perp(arm)_y = -arm_x
+        row += 2
+        if clamped[i]:
+            for a in range(N):
+                C[row, c0 + a] = tip[a] / sl
+            C[row, ip + 2] = -1.0
+            row += 1
+        Q[ip + 2, ip + 2] -= force[i, 0] * arm[i, 0] + force[i, 1] * arm[i, 1]
 
 
-def rod_compliance(v: ArrayLike, phis: ArrayLike, step: float = 1e-6) -> NDArray[np.float64]:
-    """Tip compliance ``dp/dn`` of unit rods with zero tip moment, local frame, (n, 2, 2).
-
-    The inverse of the tip stiffness (:func:`rod_tip_stiffness`), but finite also for a
-    straight rod (whose axial compliance is 0).
-    """
-    Jp, Jf = _chart_jacobians(v, phis, step)
-    return Jp @ np.linalg.pinv(Jf)
-
-
-def _chart_jacobians(v: ArrayLike, phis: ArrayLike, step: float) -> tuple[NDArray, NDArray]:
-    v = np.atleast_1d(np.asarray(v, dtype=float))
-    phis = np.atleast_1d(np.asarray(phis, dtype=float))
-    cols_p, cols_f = [], []
-    for dv, dp in ((step, 0.0), (0.0, step)):
-        a, b = tip_any(v + dv, phis + dp), tip_any(v - dv, phis - dp)
-        cols_p.append(np.stack([a.x - b.x, a.y - b.y], -1) / (2 * step))
-        cols_f.append(np.stack([a.fx - b.fx, a.fy - b.fy], -1) / (2 * step))
-    return np.stack(cols_p, -1), np.stack(cols_f, -1)
+@njit
+def _angles(chart, z, alpha, s, out) -> None:
+    """World tangent angles of rods (n, 3) at unit arc lengths ``s``: ``out`` (n, 3, len(s))."""
+    th = np.empty(s.shape[0])
+    for k in range(z.shape[0]):
+        for i in range(3):
+            tangents(chart[k, i], z[k, i], s, th)
+            for j in range(s.shape[0]):
+                out[k, i, j] = alpha[k, i] + th[j]
 
 
-def _neg_count(A: NDArray[np.float64]) -> NDArray[np.int64]:
-    """Number of clearly negative eigenvalues of symmetric parts (zeros are not counted)."""
-    ev = np.linalg.eigvalsh(0.5 * (A + np.swapaxes(A, -1, -2)))
-    tol = 1e-9 * np.max(np.abs(ev), axis=-1, keepdims=True)
-    return np.sum(ev < -tol, axis=-1)
-
-
-def _theta_nodes(v: NDArray, phis: NDArray, steps: int) -> NDArray[np.float64]:
-    v, phis = standard_chart(v, phis)
-    return tangent_angles(v, phis, np.linspace(0.0, 1.0, 2 * steps + 1))
-
-
-def rod_pinned_index(v: ArrayLike, phis: ArrayLike, steps: int = JACOBI_STEPS) -> NDArray[np.int64]:
-    """Index (unstable directions) of clamped unit rods with their tip pinned (chart coordinates).
-
-    With ``Q`` the second variation under the tip force as a dead load and ``C`` the map to
-    the tip displacement, the bordered-matrix inertia (Haynsworth) gives
-    ``index(Q on ker C) = index(Q) - neg(C Q^-1 C^T)``, and ``C Q^-1 C^T`` is the rod's tip
-    compliance ``dp/dn`` along its equilibrium family (:func:`rod_compliance`).  A zero
-    eigenvalue of the compliance (a straight rod: its axial constraint is vacuous to first
-    order) is not counted.
-    """
-    v = np.atleast_1d(np.asarray(v, dtype=float))
-    phis = np.atleast_1d(np.asarray(phis, dtype=float))
-    theta = _theta_nodes(v, phis, steps)
-    t = tip_any(v, phis)
-    free = free_index(theta, np.stack([t.fx, t.fy], -1))
-    return free - _neg_count(rod_compliance(v, phis))
-
-
-def rod_tip_stiffness(v: ArrayLike, phis: ArrayLike, step: float = 1e-6) -> NDArray[np.float64]:
-    """Tip stiffness ``K = dn/dp`` of unit rods, local frame, shape (n, 2, 2).
-
-    ``K`` is the Hessian of the rod's equilibrium energy as a function of its tip position
-    (``grad U = n``), so it is symmetric; computed as ``(dn/dz) (dp/dz)^-1`` on the chart
-    ``z = (v, phis)`` by central differences of the closed form (Eqs. 9, 12, 13).  Where the
-    chart is degenerate (the unloaded straight rod, the pole of the chart) the derivative is
-    taken at a point 1e-6 away, inside the loaded rods.
-    """
-    v = np.atleast_1d(np.asarray(v, dtype=float)).copy()
-    phis = np.atleast_1d(np.asarray(phis, dtype=float)).copy()
-    Jp, Jf = _chart_jacobians(v, phis, step)
-    det = np.linalg.det(Jp)
-    bad = ~(np.abs(det) > 1e-12 * np.sum(Jp**2, axis=(1, 2)))
-    if np.any(bad):
-        phis[bad] -= 1e-6
-        v[bad] += 1e-6
-        Jp[bad], Jf[bad] = _chart_jacobians(v[bad], phis[bad], step)
-    return Jf @ np.linalg.pinv(Jp)
-
-
-def reduced_hessian(system: System, X: NDArray, charts: NDArray) -> NDArray[np.float64]:
-    """Reduced Hessian ``H`` (n, 3, 3) of the potential over the pose (module docstring).
-
-    Dimensionless: translations in units of ``L_ref``, energy in ``EI_ref / L_ref``.
-    """
-    X = np.atleast_2d(X)
+def _spectrum(system: System, X: NDArray, charts: NDArray, N: int, coarse: int | None = None
+              ) -> tuple[NDArray, NDArray] | tuple[NDArray, NDArray, NDArray]:
+    """Eigenvalues (n, p - m), ascending, of the discretised second variation with ``N`` modes
+    per rod, and the scale of its diagonal; with ``coarse``, also the eigenvalues with the first
+    ``coarse`` modes of each rod (a nested subspace: the same quadrature, a sub-basis)."""
+    bs = basis(N)
     n = len(X)
     lay = system.layout
-    _, alpha, L = system.clamps(X[:, lay.inputs])
-    w = system.rod_world(X, charts)
-    force = w["force"]
-    arm = system.platform_points(X[:, lay.pose]) - X[:, None, lay.pose][..., :2]
-    H = np.zeros((n, 3, 3))
+    z = np.zeros((n, 3, 3))
+    ch = np.array(charts, dtype=np.int64)
     for i in range(3):
-        z = _pinned_coords(system, X, charts, i)
-        Kl = rod_tip_stiffness(z[:, 0], z[:, 1]) * (system.EI[i] / L[:, i] ** 3)[:, None, None]
-        Rm = rot2(alpha[:, i])
-        K = Rm @ Kl @ np.swapaxes(Rm, 1, 2)
-        J = np.zeros((n, 2, 3))
-        J[:, 0, 0] = J[:, 1, 1] = 1.0
-        J[:, 0, 2] = -arm[:, i, 1]
-        J[:, 1, 2] = arm[:, i, 0]
-        H += np.swapaxes(J, 1, 2) @ K @ J
-        H[:, 2, 2] -= np.sum(force[:, i] * arm[:, i], axis=1)
-    S = np.array([system.L_ref, system.L_ref, 1.0])
-    return H * S[None, :, None] * S[None, None, :] / (system.F_ref * system.L_ref)
+        zi = X[:, lay.rod[i]]
+        z[:, i, :zi.shape[1]] = zi
+        seam = ch[:, i] == CHART_SEAM
+        if np.any(seam):  # the profile is evaluated in the unified chart
+            v, ph = seam_to_chart(zi[seam, 0], zi[seam, 1])
+            z[seam, i, 0], z[seam, i, 1] = v, ph
+            ch[seam, i] = CHART_UNIFIED
+    _, alpha, L = system.clamps(X[:, lay.inputs])
+    theta = np.empty((n, 3, len(bs.s)))
+    _angles(ch, z, alpha, bs.s, theta)
+    w = system.rod_world(X, charts)
+    force = w["force"] / system.F_ref
+    arm = (system.platform_points(X[:, lay.pose]) - X[:, None, lay.pose.start:lay.pose.start + 2]) / system.L_ref
+    ell = L / system.L_ref
+    e = system.EI / system.EI_ref
+    clamped = system.clamped
+    p = 3 * N + 3
+    m = 6 + int(np.count_nonzero(clamped))
+    Q = np.empty((n, p, p))
+    C = np.empty((n, m, p))
+    for k in range(n):
+        _assemble(theta[k], force[k], ell[k], e, arm[k], clamped, bs.psi, bs.w, bs.K, bs.tip, Q[k], C[k])
+    scale = np.max(np.abs(np.diagonal(Q, axis1=1, axis2=2)), axis=1)
+    ev = _constrained_eigvals(Q, C)
+    if coarse is None:
+        return ev, scale
+    keep = np.r_[np.concatenate([np.arange(i * N, i * N + coarse) for i in range(3)]), 3 * N + np.arange(3)]
+    evc = _constrained_eigvals(Q[:, keep][:, :, keep], C[:, :, keep])
+    return ev, scale, evc
 
 
-def _pinned_coords(system: System, X: NDArray, charts: NDArray, i: int) -> NDArray[np.float64]:
-    """Rod ``i``'s coordinates in the unified chart ``(v, phis)`` (seam-chart rods converted)."""
-    from ..rod.closed_form import seam_to_chart
-
-    z = np.array(X[:, system.layout.rod[i]][:, :2], dtype=float)
-    seam = np.asarray(charts)[:, i] == 1
-    if np.any(seam):
-        v, ph = seam_to_chart(z[seam, 0], z[seam, 1])
-        z[seam, 0], z[seam, 1] = v, ph
-    return z
+def _constrained_eigvals(Q: NDArray, C: NDArray) -> NDArray[np.float64]:
+    """Eigenvalues of each ``Q`` on the null space of its ``C`` (rank-revealing: a vacuous
+    constraint, such as a straight rod's axial one, is dropped); rows padded with ``inf``."""
+    n, m, p = C.shape
+    _, sv, Vt = np.linalg.svd(C, full_matrices=True)
+    rank = np.sum(sv > RANK_RTOL * sv[:, :1], axis=1)
+    ev = np.full((n, p - m), np.inf)
+    full = rank == m
+    if np.any(full):
+        Z = np.swapaxes(Vt[full, m:, :], 1, 2)            # orthonormal basis of the null space
+        A = np.swapaxes(Z, 1, 2) @ Q[full] @ Z
+        ev[full] = np.linalg.eigvalsh(0.5 * (A + np.swapaxes(A, 1, 2)))
+    for k in np.flatnonzero(~full):
+        Z = Vt[k, rank[k]:, :].T
+        A = Z.T @ Q[k] @ Z
+        ev[k] = np.linalg.eigvalsh(0.5 * (A + A.T))[:p - m]
+    return ev
 
 
 @dataclass(frozen=True)
 class StabilityArrays:
-    """Stability of ``n`` equilibria (arrays; see :func:`mechanism_stability`)."""
+    """Stability of ``n`` equilibria (see the module docstring).
 
-    stable: NDArray[np.bool_]         # (n,)
-    index: NDArray[np.int64]          # (n,) number of unstable directions (Morse index)
-    margin: NDArray[np.float64]       # (n,) see mechanism_stability
-    rod_index: NDArray[np.int64]      # (n, 3) index of each rod with its tip pinned
-    hessian: NDArray[np.float64]      # (n, 3, 3) reduced Hessian (dimensionless)
-
-
-def mechanism_stability(system: System, X: NDArray, charts: NDArray,
-                        steps: int = JACOBI_STEPS) -> StabilityArrays:
-    """Stability of equilibria of the mechanism with the actuators locked.
-
-    Parameters
+    Attributes
     ----------
-    system : System
-    X : ndarray (n, n_unknowns)
-        Refined equilibria (the load enters through the rods' tip forces).
-    charts : ndarray (n, 3)
-    steps : int
-        RK4 steps of the Jacobi fields along each rod.
-
-    Returns
-    -------
-    StabilityArrays
-        ``index`` = sum of the rods' pinned indices + negative eigenvalues of the reduced
-        Hessian; ``stable`` iff ``index == 0``.  ``margin`` is the smallest eigenvalue of the
-        dimensionless reduced Hessian when every rod is stable with its tip pinned (it
-        crosses zero where the platform loses stability, at an FK singularity); when ``k``
-        rods buckle on their own it is ``-k``.  So ``margin > 0`` iff stable.
+    stable : (n,) int8: 1 stable, 0 unstable, -1 undecided.
+    margin : (n,) smallest eigenvalue of the second variation (EI_ref / L_ref).
+    resolution : (n,) its guaranteed resolution.
+    index : (n,) number of negative eigenvalues, -1 where unresolved.
+    modes : (n,) Legendre modes per rod of the final resolution.
     """
+
+    stable: NDArray[np.int8]
+    margin: NDArray[np.float64]
+    resolution: NDArray[np.float64]
+    index: NDArray[np.int64]
+    modes: NDArray[np.int64]
+
+    def item(self, i: int) -> Stability:
+        """The :class:`~flexkin.results.Stability` of equilibrium ``i``."""
+        st = int(self.stable[i])
+        note = ""
+        if st < 0:
+            note = (f"undecided: the smallest eigenvalue of the second variation, {self.margin[i]:.3g}, is below "
+                    f"the resolution {self.resolution[i]:.2g} reached with {self.modes[i]} modes per rod (typical "
+                    f"of a rod near the separatrix: a loop held in tension or a taut rod)")
+        idx = int(self.index[i])
+        return Stability(None if st < 0 else bool(st), float(self.margin[i]), None if idx < 0 else idx,
+                         float(self.resolution[i]), note)
+
+
+def mechanism_stability(system: System, X: NDArray, charts: NDArray) -> StabilityArrays:
+    """Stability of equilibria ``X`` (n, n_unknowns) in ``charts`` (n, 3), actuators locked."""
     X = np.atleast_2d(np.asarray(X, dtype=float))
+    charts = np.atleast_2d(np.asarray(charts, dtype=np.int64))
     n = len(X)
-    zrod = np.concatenate([_pinned_coords(system, X, charts, i) for i in range(3)], axis=1)
-    cnt = rod_pinned_index(zrod[:, 0::2].ravel(), zrod[:, 1::2].ravel(), steps).reshape(n, 3)
-    H = reduced_hessian(system, X, charts)
-    H = 0.5 * (H + np.swapaxes(H, 1, 2))
-    finite = np.all(np.isfinite(H), axis=(1, 2))
-    ev = np.full((n, 3), -np.inf)
-    if np.any(finite):
-        ev[finite] = np.linalg.eigvalsh(H[finite])
-    index = cnt.sum(1) + np.sum(ev < 0.0, axis=1)
-    rods_ok = cnt.sum(1) == 0
-    margin = np.where(rods_ok, ev[:, 0], -cnt.sum(1).astype(float))
-    margin = np.where(np.isfinite(margin), margin, -1.0)
-    return StabilityArrays(index == 0, index.astype(np.int64), margin, cnt, H)
+    out_m = np.zeros(n)
+    out_r = np.full(n, np.inf)
+    out_i = np.full(n, -1, np.int64)
+    out_n = np.zeros(n, np.int64)
+    if n == 0:
+        return StabilityArrays(np.zeros(0, np.int8), out_m, out_r, out_i, out_n)
+    q, _ = system.unit_rods(X, charts)
+    N0 = np.array([_modes_for(float(np.max(np.nan_to_num(q[k, :, PHI])))) for k in range(n)])
+    todo = np.arange(n)
+    N = N0.copy()
+    with single_threaded_blas():
+        while todo.size:
+            for Nv in np.unique(N[todo]):
+                grp = todo[N[todo] == Nv]
+                ev2, sc2, ev1 = _spectrum(system, X[grp], charts[grp], int(Nv), _coarse(int(Nv)))
+                k = min(ev1.shape[1], ev2.shape[1], 6)
+                floor = ROUNDOFF * sc2
+                err = 2.0 * np.abs(ev2[:, :k] - ev1[:, :k]) + floor[:, None]
+                res = err[:, 0]
+                mu = ev2[:, 0]
+                out_m[grp], out_r[grp], out_n[grp] = mu, res, Nv
+                near = np.abs(ev2[:, :k]) <= 3.0 * err
+                neg = np.sum(ev2 < 0.0, axis=1)
+                out_i[grp] = np.where(np.any(near, axis=1), -1, neg)
+            # refine where the verdict or the index is undecided, or the margin is not known to 1 %
+            ok = ((np.abs(out_m[todo]) > 3.0 * out_r[todo]) & (out_r[todo] <= 1e-2 * (1.0 + np.abs(out_m[todo])))
+                  & ((out_i[todo] >= 0) | (out_m[todo] > 3.0 * out_r[todo])))
+            todo = todo[~ok & (N[todo] < N_MAX)]
+            if todo.size:
+                N[todo] = np.minimum(N_MAX, 8 * np.ceil(1.5 * N[todo] / 8)).astype(np.int64)
+    stable = np.where(out_m > 3.0 * out_r, 1, np.where(out_m < -3.0 * out_r, 0, -1)).astype(np.int8)
+    out_i = np.where(stable == 1, 0, out_i)
+    return StabilityArrays(stable, out_m, out_r, out_i, out_n)
 
 
-# ---- a single rod: the classical cases -----------------------------------------------------------
+# ---- the platform's output stiffness ------------------------------------------------------------
+def output_stiffness(system: System, X: NDArray, charts: NDArray, load: NDArray) -> NDArray[np.float64]:
+    """The platform's stiffness with the actuators locked, ``K = dW/dq`` (n, 3, 3): the change of
+    the load wrench ``W = (F_x, F_y, M_z)`` that holds the platform displaced by ``dq = (dx, dy,
+    dtheta)`` at equilibrium.  It is the Hessian of the potential reduced to the pose; units N/m
+    (force/translation), N (force/rotation and moment/translation), N m/rad (moment/rotation)."""
+    from .jacobian import system_blocks
+
+    Gz, Gx, _ = system_blocks(system, X, charts, load)
+    # residual rows of the equilibrium are (sum n - W) / scale: dR/dW = -1/scale on them
+    lay = system.layout
+    n, ne, nz = Gz.shape
+    Gw = np.zeros((ne, 3))
+    Gw[lay.force.start, 0] = Gw[lay.force.start + 1, 1] = -1.0
+    Gw[lay.moment.start, 2] = -1.0
+    A = np.concatenate([Gz, np.broadcast_to(Gw, (n, ne, 3))], axis=2)   # unknowns (dz, dW/wscale)
+    sol = -np.linalg.solve(A, Gx)                                       # (n, nz + 3, 3) per unit pose
+    dW = sol[:, nz:, :] * system.wrench_scale()[None, :, None]          # wrench per dimensionless pose
+    return dW / np.array([system.L_ref, system.L_ref, 1.0])[None, None, :]
 
 
+# ---- one rod: the classical cases ---------------------------------------------------------------
 @dataclass(frozen=True)
 class RodStability:
     """Stability of one clamped rod under a tip condition (see :func:`rod_stability`).
 
     Attributes
     ----------
-    stable : bool
-    index : int
+    stable : bool or None
+    index : int or None
         Number of unstable directions.
-    first_conjugate : float or None
-        For ``tip="free"``: arc length (m) where the Jacobi field first reaches its first
-        focal point (``u' = 0``, forward), ``inf`` if none on (0, L); ``None`` otherwise.
+    margin : float
+        Smallest eigenvalue of the second variation (EI / L units of the rod).
+    resolution : float
     tip : str
-        ``"pinned"``, ``"slider"`` or ``"free"``.
     """
 
-    stable: bool
-    index: int
-    first_conjugate: float | None
+    stable: bool | None
+    index: int | None
+    margin: float
+    resolution: float
     tip: str
 
 
-def rod_stability(rod: RodState, tip: str = "pinned", slider_angle: float | None = None,
-                  steps: int = JACOBI_STEPS) -> RodStability:
-    """Stability of one rod clamped at its base, with its tip force treated as
+def rod_stability(rod: RodState, tip: str = "pinned", slider_angle: float | None = None) -> RodStability:
+    """Stability of one rod clamped at its base, with its tip
 
-    * ``"pinned"``: a reaction, the tip held at a fixed point (rotation free);
-    * ``"slider"``: a dead load along a line of angle ``slider_angle`` (rad, world frame) on
-      which the tip slides, plus the lateral reaction (rotation free);
-    * ``"free"``: a dead load on a free tip (the cantilever).
+    * ``"free"``: a dead load on a free tip (the cantilever);
+    * ``"pinned"``: held at a fixed point, free to turn;
+    * ``"slider"``: sliding on a line of angle ``slider_angle`` (rad, world), free to turn;
+    * ``"clamped"``: held at a fixed point with a fixed tangent.
 
-    The rod must be an equilibrium of that problem (zero tip moment, as every
-    :class:`RodState` is; for ``"slider"`` and ``"free"`` the tip force must be the dead
-    load).  Index of the free problem by Sturm–Pruefer (:func:`free_index`), then the
-    constrained ones by the bordered-matrix inertia with the tip compliance.
+    The rod must be an equilibrium of that problem (for ``"free"`` and ``"slider"`` the tip
+    force is the dead load).  Same discretisation as :func:`mechanism_stability`, with the
+    rod's own ``L`` and ``EI`` as units.
     """
-    if tip not in ("pinned", "slider", "free"):
-        raise ValueError(f"tip must be 'pinned', 'slider' or 'free', got {tip!r}")
+    if tip not in ("pinned", "slider", "free", "clamped"):
+        raise ValueError(f"tip must be 'free', 'pinned', 'slider' or 'clamped', got {tip!r}")
     if tip == "slider" and slider_angle is None:
         raise ValueError("tip='slider' needs slider_angle (rad)")
-    v, ph = np.array([rod.v]), np.array([rod.phis])
-    theta = _theta_nodes(v, ph, steps)
-    t = tip_chart(rod.v, rod.phis)
-    f = np.array([[float(t.fx), float(t.fy)]])
-    index = int(free_index(theta, f)[0])
-    first: float | None = None
-    if tip == "free":
-        first = _first_focal(theta[0], f[0]) * rod.length
-    else:
-        Cp = rod_compliance(v, ph)[0]
-        if tip == "slider":
-            a = float(slider_angle) - rod.clamp_angle  # local frame
-            g = np.array([-np.sin(a), np.cos(a)])
-            Cp = np.array([[g @ Cp @ g]])
-        index -= int(_neg_count(Cp[None])[0])
-    return RodStability(index == 0, index, first, tip)
-
-
-def _first_focal(theta: NDArray, f: NDArray) -> float:
-    """First s where the Pruefer angle of the free Jacobi field reaches pi/2 (inf if never)."""
-    ns = theta.shape[0]
-    N = (ns - 1) // 2
-    best = np.inf
-    lo, hi = 0, N
-    # bisection on the number of steps: the angle at s is that of the truncated rod
-    ang_end = _angle_at(theta, f, N)
-    if ang_end <= 0.5 * np.pi:
-        return best
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if _angle_at(theta, f, mid) > 0.5 * np.pi:
-            hi = mid
-        else:
-            lo = mid
-    a0, a1 = _angle_at(theta, f, lo), _angle_at(theta, f, hi)
-    return (lo + (0.5 * np.pi - a0) / (a1 - a0)) / N
-
-
-def _angle_at(theta: NDArray, f: NDArray, k: int) -> float:
-    if k == 0:
-        return 0.0
-    out = np.zeros(1)
-    # theta rescaled: the first k steps of the grid, as a rod of "length" k/N (h unchanged)
-    sub = np.ascontiguousarray(theta[None, : 2 * k + 1])
-    N = (theta.shape[0] - 1) // 2
-    _pruefer_kernel_h(sub, np.ascontiguousarray(f[None]), 1.0 / N, out)
-    return float(out[0])
+    z = np.zeros((1, 3, 3))
+    ch = np.full((1, 3), rod.chart, dtype=np.int64)
+    z[0, :, :len(rod.coords)] = rod.coords
+    if rod.chart == CHART_SEAM:
+        z[0, :, 0], z[0, :, 1] = seam_to_chart(rod.coords[0], rod.coords[1])
+        ch[:] = CHART_UNIFIED
+    Phi = np.sqrt(np.hypot(*rod.tip_force) * rod.length**2 / rod.EI)
+    N = _modes_for(Phi)
+    f = np.array(rod.tip_force) * rod.length**2 / rod.EI
+    results = []
+    with single_threaded_blas():
+        while True:
+            evs = []
+            for n_ in (N, int(min(N_MAX, N + max(8, N // 4)))):
+                bs = basis(n_)
+                th = np.empty((1, 3, len(bs.s)))
+                _angles(ch, z, np.full((1, 3), rod.clamp_angle), bs.s, th)
+                th0 = th[0, 0]
+                Q = bs.K + (bs.psi * (bs.w * (f[0] * np.cos(th0) + f[1] * np.sin(th0)))) @ bs.psi.T
+                rows = []
+                nperp = np.stack([-np.sin(th0), np.cos(th0)]) * bs.w
+                if tip in ("pinned", "clamped"):
+                    rows += list(nperp @ bs.psi.T)
+                elif tip == "slider":
+                    g = np.array([-np.sin(slider_angle), np.cos(slider_angle)])
+                    rows.append(g @ nperp @ bs.psi.T)
+                if tip == "clamped":
+                    rows.append(bs.tip)
+                if rows:
+                    Cm = np.array(rows)
+                    _, sv, Vt = np.linalg.svd(Cm, full_matrices=True)
+                    Z = Vt[int(np.sum(sv > RANK_RTOL * sv[0])):].T
+                    A = Z.T @ Q @ Z
+                else:
+                    A = Q
+                evs.append(np.linalg.eigvalsh(0.5 * (A + A.T)))
+                results.append(n_)
+            ev1, ev2 = evs
+            k = min(len(ev1), len(ev2), 6)
+            res = 2.0 * abs(ev2[0] - ev1[0]) + ROUNDOFF * np.max(np.abs(np.diag(bs.K))) * results[-1] ** 2
+            mu = float(ev2[0])
+            if abs(mu) > 3 * res or results[-1] >= N_MAX:
+                break
+            N = min(N_MAX, 2 * N)
+    err = 2.0 * np.abs(ev2[:k] - ev1[:k]) + (res - 2.0 * abs(ev2[0] - ev1[0]))
+    near = np.any(np.abs(ev2[:k]) <= 3 * err)
+    stable = None if abs(mu) <= 3 * res else mu > 0
+    index = 0 if stable else (None if near else int(np.sum(ev2 < 0)))
+    return RodStability(stable, index, mu, float(res), tip)

@@ -311,3 +311,42 @@ def profile(chart: int, z: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
         unified_profile(z[0], z[1], s, out)
     else:
         out[:, :] = np.nan
+
+
+@njit
+def unified_tangents(v: float, phis: float, s: np.ndarray, out: np.ndarray) -> None:
+    """Tangent angle ``theta(s)`` of a pinned unit rod ``(v, phis)`` at increasing arc lengths
+    ``s`` (local frame): ``theta = psi + 2 atan2(-Delta(phi), k sin phi)`` with the Jacobi
+    amplitude ``phi(s) = am(F(phis) + Phi s)`` (the positions of :func:`unified_profile` are not
+    needed here)."""
+    av = min(abs(v), 350.0)
+    kp = 2.0 * math.exp(-av) / (1.0 + math.exp(-2.0 * av))
+    ku = math.tanh(v)
+    kp2 = kp * kp
+    m = ku * ku
+    K, Ec, Dc, Bc = complete(m, kp2)
+    Fs, Es, Ds, Bs, ds = fedb(phis, m, kp2, K, Ec, Dc, Bc)
+    Phi = K - Fs
+    if not Phi > 0.0:
+        out[:] = 0.0
+        return
+    psi = 2.0 * math.atan2(ds, ku * math.sin(phis))
+    phi = phis
+    for j in range(s.shape[0]):
+        if s[j] > 0.0:
+            phi = inverse_f(Fs + Phi * s[j], m, kp2, K, phi)
+        sp = math.sin(phi)
+        d = math.sqrt(math.cos(phi) ** 2 + kp2 * sp * sp)
+        out[j] = psi + 2.0 * math.atan2(-d, ku * sp)
+
+
+@njit
+def tangents(chart: int, z: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
+    """Tangent angles of a unit rod in chart ``chart`` at arc lengths ``s`` (unified or wrench
+    chart; convert seam coordinates first)."""
+    if chart == CHART_UNIFIED:
+        unified_tangents(z[0], z[1], s, out)
+    else:
+        prof = np.empty((s.shape[0], 4))
+        profile(chart, z, s, prof)
+        out[:] = prof[:, 2]

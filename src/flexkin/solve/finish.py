@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from ..analysis.jacobian import kinematic_jacobians
 from ..analysis.stability import mechanism_stability
 from ..core.geometry2d import wrap_to_pi
-from ..results import Solution, Stability
+from ..results import Solution
 from ..rod.atlas import in_scope
 from ..rod.closed_form import mode_of, standard_chart
 from ..rod.kernels import CHART_WRENCH
@@ -135,7 +135,7 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
         rods = tuple(RodState.from_unit(q[j, i], int(charts[j, i]), X[j, lay.rod[i]], L[j, i], system.EI[i],
                                         A[j, i], alpha[j, i], int(modes[j, i]), mech.legs[i].joint)
                      for i in range(3))
-        st = Stability(bool(stab.stable[j]), float(stab.margin[j]), int(stab.index[j]))
+        st = stab.item(j)
         sols.append(Solution(mech, tuple(float(v) for v in X[j, lay.pose]), tuple(float(v) for v in X[j, lay.inputs]),
                              tuple(int(v) for v in modes[j]),
                              rods, X[j].copy(), charts[j].copy(), float(residual[j]), st,

@@ -67,8 +67,8 @@ class PathResult(Result):
     """One IK solution followed along a straight path of poses.
 
     Array attributes have one row per reached sample: ``t`` (k,), ``poses`` (k, 3) (rad),
-    ``inputs`` (k, 3) (SI, continuous), ``modes`` (k, 3), ``stable`` (k,; undecided samples
-    count as not stable), ``margin`` (k,), ``det_ik``, ``det_fk``, ``cond`` (k,) (Eq. 16,
+    ``inputs`` (k, 3) (SI, continuous), ``modes`` (k, 3), ``stable`` (k,; samples whose
+    stability is undecided count as not stable), ``margin`` (k,), ``det_ik``, ``det_fk``, ``cond`` (k,) (Eq. 16,
     dimensionless; non-finite at singularities), ``sing_ik``, ``sing_fk`` (k,) the smooth
     singularity functions, ``x`` and ``charts`` the system's unknowns.  ``complete`` is
     ``True`` when the end of the path was reached.
@@ -267,7 +267,7 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
     st = mechanism_stability(system, X, C)
     jac = kinematic_jacobians(system, X, C, w)
     modes = rod_modes(system, X, C)
-    stable = np.asarray(st.stable, dtype=bool)
+    stable = st.stable == 1
     events = sorted(_events(T, modes, stable, jac.sing_ik, jac.sing_fk) + bridged, key=lambda e: e.t_lo)
     msg = ""
     if failed is not None:

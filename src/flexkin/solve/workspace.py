@@ -319,7 +319,7 @@ def _propagate(m: System, x0: NDArray, c0: NDArray, seed_ij: tuple[int, int], X:
                 if crossed_ik:
                     status[jj, ii] = FAILED
                     bik[j, i] = True
-                elif not st.stable[k] or crossed_fk:
+                elif st.stable[k] != 1 or crossed_fk:
                     status[jj, ii] = UNSTABLE
                     bfk[j, i] = True
                 else:
