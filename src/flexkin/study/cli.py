@@ -1,0 +1,111 @@
+"""``flexkin study STUDY.toml --out DIR [--workers N | --scheduler ADDRESS]``.
+
+Wiring into flexkin's command line (``flexkin/cli.py``)::
+
+    from .study.cli import add_study_parser, run_study_command
+    add_study_parser(sub)                      # sub = parser.add_subparsers(...)
+    handler = {..., "study": run_study_command}[a.command]
+
+:func:`run_study_command` prints the summary on stdout and returns the exit status: 0 when the
+study ran (failing designs are rows with an ``error``, not a failure of the command), 2 for
+bad input (a bad study file or argument, an unwritable output directory, an unreachable
+scheduler) with one line on stderr, 130 when interrupted (the finished rows are kept).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from typing import Any, Sequence
+
+__all__ = ["add_study_parser", "run_study_command", "main"]
+
+EXIT_USAGE = 2
+
+
+def _workers(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if not 1 <= v <= 4096:
+        raise argparse.ArgumentTypeError(f"must be between 1 and 4096, got {v}")
+    return v
+
+
+def _seconds(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not math.isfinite(v) or v <= 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return v
+
+
+def add_study_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add the ``study`` sub-command to ``subparsers`` (from ``parser.add_subparsers()``)."""
+    p = subparsers.add_parser(
+        "study", help="design study: sweep mechanism parameters and map workspaces, on Dask",
+        description="Run a design study (docs/study.md): for every design of the study file's grid and every "
+                    "orientation, map the workspace and compute the metrics; write DIR/results.parquet, "
+                    "DIR/results.csv and figures. Rows finished by an earlier run into DIR are reused.")
+    p.add_argument("study", metavar="STUDY.toml", help="study file (TOML)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory (created; re-use it to resume)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--workers", type=_workers, metavar="N",
+                   help="worker processes of the local Dask cluster (default: the number of cores)")
+    g.add_argument("--scheduler", metavar="ADDRESS",
+                   help="address of a running Dask scheduler (tcp://HOST:PORT), or 'synchronous' to compute in "
+                        "this process without Dask")
+    p.add_argument("--timeout", type=_seconds, default=10.0, metavar="S",
+                   help="seconds to wait for the scheduler (default 10)")
+    p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    p.add_argument("--no-figures", action="store_true", help="write the table only")
+    p.add_argument("--retry-failed", action="store_true", help="compute again the stored rows that have an error")
+    return p
+
+
+def run_study_command(args: argparse.Namespace) -> int:
+    """Run ``flexkin study`` for parsed ``args``; return the exit status."""
+    from .run import run_study
+    from .spec import StudyError
+
+    try:
+        res = run_study(args.study, args.out, workers=args.workers, scheduler=args.scheduler,
+                        progress=not args.quiet, figures=not args.no_figures, retry_failed=args.retry_failed,
+                        timeout=args.timeout)
+    except StudyError as e:
+        print(f"flexkin study: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(f"flexkin study: interrupted; the finished rows are kept in {args.out}/rows: run the same command "
+              "again to compute the rest", file=sys.stderr)
+        return 130
+    print(res.summary())
+    print(f"table: {res.parquet} and {res.csv}; {len(res.figures)} figure(s) in {res.out}")
+    for m in res.messages:
+        print(f"flexkin study: {m}", file=sys.stderr)
+    if res.n_failed:
+        print(f"flexkin study: {res.n_failed} row(s) failed: see the 'error' column", file=sys.stderr)
+    if res.n_incomplete:
+        print(f"flexkin study: {res.n_incomplete} row(s) were cut short by the time budget ('complete' is false)",
+              file=sys.stderr)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``flexkin study ...`` on its own (until the command is wired into ``flexkin``):
+    ``python -c "import sys; from flexkin.study.cli import main; sys.exit(main())" study ...``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    parser = argparse.ArgumentParser(prog="flexkin")
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_study_parser(sub)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # argparse: usage and one message on stderr
+        return int(e.code) if isinstance(e.code, int) else EXIT_USAGE
+    return run_study_command(args)

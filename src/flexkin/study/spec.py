@@ -1,0 +1,439 @@
+"""Study files (TOML): parsing and validation.
+
+A study names a base mechanism file, a grid over mechanism parameters (dotted keys, see
+:mod:`flexkin.study.grid`), the platform orientations to map and, optionally, the metrics and
+the workspace settings.  ``docs/study.md`` describes the format; the minimal form is::
+
+    mechanism = "unit_3rfr.toml"            # relative to the study file
+    orientations = [0, 20]                  # deg
+    [grid]
+    "rod.length" = [0.9, 1.0, 1.1]          # explicit values
+    "rod.EI" = {start = 0.5, stop = 2.0, num = 4}
+
+Every mistake raises :class:`StudyError` with one message ``"<file>: <key>: <problem>"``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import itertools
+import json
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from . import grid as _grid
+from .evaluate import METRICS, ROW_VERSION, DesignTask
+
+__all__ = ["StudyError", "StudySpec", "GridAxis", "Design", "load_study", "study_from_dict", "WORKSPACE_DEFAULTS"]
+
+_TOP_KEYS = ("name", "mechanism", "orientations", "metrics", "grid", "workspace")
+_RANGE_KEYS = ("start", "stop", "num")
+#: workspace settings and their defaults (``None``: flexkin's default)
+WORKSPACE_DEFAULTS: dict[str, Any] = {"step": None, "bounds": None, "seed": [0.0, 0.0], "max_mode": 2,
+                                      "all_aspects": True, "time_budget": None, "strain_samples": 8}
+MAX_TASKS = 1_000_000
+MAX_FILE_BYTES = 1024 * 1024
+
+
+class StudyError(ValueError):
+    """A study file or a study argument is invalid, or the study cannot run; the message is
+    one line meant for the user."""
+
+
+class _Problem(Exception):
+    def __init__(self, path: str, message: str) -> None:
+        super().__init__(f"{path}: {message}" if path else message)
+
+
+@dataclass(frozen=True)
+class GridAxis:
+    """One grid parameter: its dotted key and its values (in file order)."""
+
+    key: str
+    values: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Design:
+    """One point of the grid: its index (row-major over the axes, the first axis slowest)
+    and its parameter values."""
+
+    index: int
+    params: tuple[tuple[str, float], ...]
+
+    def as_dict(self) -> dict[str, float]:
+        return dict(self.params)
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    """A validated study.
+
+    Attributes
+    ----------
+    name : str
+    source : str
+        The study file (or ``"<dict>"``).
+    mechanism_path : str
+        The base mechanism file (absolute).
+    mechanism : dict
+        The base mechanism file's content (as parsed TOML: degrees).
+    grid : tuple of GridAxis
+    orientations : tuple of float
+        Degrees.
+    metrics : tuple of str
+        Metric columns to compute (default: every metric of :data:`flexkin.study.METRICS`).
+    workspace : dict
+        Workspace settings (see :data:`WORKSPACE_DEFAULTS`).
+    """
+
+    name: str
+    source: str
+    mechanism_path: str
+    mechanism: dict[str, Any] = field(repr=False)
+    grid: tuple[GridAxis, ...]
+    orientations: tuple[float, ...]
+    metrics: tuple[str, ...]
+    workspace: dict[str, Any]
+
+    @property
+    def keys(self) -> tuple[str, ...]:
+        return tuple(a.key for a in self.grid)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(len(a.values) for a in self.grid)
+
+    @property
+    def n_designs(self) -> int:
+        return math.prod(self.shape)
+
+    @property
+    def n_tasks(self) -> int:
+        return self.n_designs * len(self.orientations)
+
+    def designs(self) -> list[Design]:
+        """Every design, in row order (the first grid key varies slowest)."""
+        return [Design(d, tuple(zip(self.keys, vals)))
+                for d, vals in enumerate(itertools.product(*(a.values for a in self.grid)))]
+
+    def tasks(self) -> list[DesignTask]:
+        """One task per (design, orientation), in row order; each with a content key that
+        identifies its result (the same inputs give the same key, whatever the run)."""
+        from ..mechanism import mechanism_from_dict
+
+        base_mech = mechanism_from_dict(self.mechanism, source=self.mechanism_path)
+        out = []
+        for d in self.designs():
+            params = d.as_dict()
+            data = _grid.apply_design(self.mechanism, base_mech, params)
+            ws = _grid.scaled_settings(self.workspace, params)
+            for th in self.orientations:
+                ident = {"v": ROW_VERSION, "mechanism": data, "theta_deg": th, "workspace": ws,
+                         "metrics": list(self.metrics)}
+                key = hashlib.sha256(json.dumps(ident, sort_keys=True, allow_nan=False).encode()).hexdigest()[:24]
+                label = ", ".join(f"{k} = {v:g}" for k, v in d.params)
+                out.append(DesignTask(index=len(out), design=d.index, params=d.params, theta_deg=th,
+                                      mechanism=data, source=f"<design {d.index} ({label}) of "
+                                      f"{os.path.basename(self.mechanism_path)}>",
+                                      workspace=ws, metrics=self.metrics, key=key))
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (written beside the results)."""
+        return {"name": self.name, "source": self.source, "mechanism_path": self.mechanism_path,
+                "grid": {a.key: list(a.values) for a in self.grid}, "orientations": list(self.orientations),
+                "metrics": list(self.metrics), "workspace": dict(self.workspace), "row_version": ROW_VERSION}
+
+
+# ---- value helpers -------------------------------------------------------------------
+def _tname(v: Any) -> str:
+    if isinstance(v, bool):
+        return "a boolean"
+    if isinstance(v, dict):
+        return "a table"
+    if isinstance(v, list):
+        return "a list"
+    if isinstance(v, str):
+        return "a string"
+    if isinstance(v, (int, float)):
+        return "a number"
+    return f"a {type(v).__name__}"
+
+
+def _show(v: Any) -> str:
+    s = repr(v)
+    return s if len(s) <= 60 else s[:57] + "..."
+
+
+def _number(v: Any, path: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise _Problem(path, f"expected a number, got {_tname(v)} {_show(v)}")
+    try:
+        f = float(v)
+    except OverflowError:
+        raise _Problem(path, f"{_show(v)} is too large") from None
+    if not math.isfinite(f):
+        raise _Problem(path, f"expected a finite number, got {f!r}")
+    return f
+
+
+def _check_table_keys(table: Mapping[str, Any], allowed: tuple[str, ...], path: str) -> None:
+    for k in table:
+        if k in allowed:
+            continue
+        close = difflib.get_close_matches(str(k), allowed, n=1, cutoff=0.6)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        where = f"{path}.{k}" if path else str(k)
+        raise _Problem(where, f"unknown key{hint}; allowed keys here: {', '.join(allowed)}")
+
+
+def _values(v: Any, path: str, what: str = "values") -> tuple[float, ...]:
+    """An explicit list of numbers or a ``{start, stop, num}`` range (linspace)."""
+    if isinstance(v, list):
+        if not v:
+            raise _Problem(path, "empty list: give at least one value")
+        vals = tuple(_number(x, f"{path}[{j + 1}]") for j, x in enumerate(v))
+    elif isinstance(v, dict):
+        _check_table_keys(v, _RANGE_KEYS, path)
+        for k in _RANGE_KEYS:
+            if k not in v:
+                raise _Problem(f"{path}.{k}", "missing (a range is {start = a, stop = b, num = n})")
+        a = _number(v["start"], f"{path}.start")
+        b = _number(v["stop"], f"{path}.stop")
+        num = v["num"]
+        if isinstance(num, bool) or not isinstance(num, int):
+            raise _Problem(f"{path}.num", f"expected an integer, got {_tname(num)} {_show(num)}")
+        if num < 1:
+            raise _Problem(f"{path}.num", f"must be >= 1, got {num}")
+        if num == 1 and a != b:
+            raise _Problem(f"{path}.num", "num = 1 with start != stop is ambiguous: give num >= 2 or a list")
+        if num > MAX_TASKS:
+            raise _Problem(f"{path}.num", f"too many values ({num})")
+        if num > 1 and a == b:
+            raise _Problem(path, f"start == stop ({a:g}) with num = {num} gives {num} equal values")
+        vals = tuple(float(x) for x in np.linspace(a, b, num))
+    else:
+        raise _Problem(path, f"expected a list of {what} or a range {{start, stop, num}}, got {_tname(v)} {_show(v)}")
+    seen: set[float] = set()
+    for x in vals:
+        if x in seen:
+            raise _Problem(path, f"duplicate value {x:g}")
+        seen.add(x)
+    return vals
+
+
+# ---- sections ------------------------------------------------------------------------
+def _read_mechanism(value: Any, base_dir: Path) -> tuple[str, dict[str, Any], Any]:
+    from ..errors import MechanismError
+    from ..mechanism import load_mechanism
+
+    if not isinstance(value, str):
+        raise _Problem("mechanism", f"expected a file name (string), got {_tname(value)} {_show(value)}")
+    if not value:
+        raise _Problem("mechanism", "empty file name")
+    path = Path(value)
+    if not path.is_absolute():
+        path = base_dir / path
+    path = Path(os.path.normpath(path))
+    if not path.exists():
+        raise _Problem("mechanism", f"file not found: {path}")
+    try:
+        mech = load_mechanism(path)
+    except MechanismError as e:
+        raise _Problem("mechanism", f"invalid base mechanism: {e}") from None
+    with open(path, "rb") as fh:
+        data = tomllib.loads(fh.read().decode("utf-8-sig"))
+    return str(path), data, mech
+
+
+def _workspace(value: Any) -> dict[str, Any]:
+    out = dict(WORKSPACE_DEFAULTS)
+    if value is None:
+        return out
+    if not isinstance(value, dict):
+        raise _Problem("workspace", f"expected a table, got {_tname(value)} {_show(value)}")
+    _check_table_keys(value, tuple(WORKSPACE_DEFAULTS), "workspace")
+    if "step" in value:
+        s = _number(value["step"], "workspace.step")
+        if s <= 0:
+            raise _Problem("workspace.step", f"must be > 0 (m), got {s!r}")
+        out["step"] = s
+    if "bounds" in value:
+        b = value["bounds"]
+        if not isinstance(b, list) or len(b) != 4:
+            raise _Problem("workspace.bounds", f"expected [x0, x1, y0, y1] (m), got {_show(b)}")
+        bb = [_number(x, f"workspace.bounds[{j + 1}]") for j, x in enumerate(b)]
+        if not (bb[0] < bb[1] and bb[2] < bb[3]):
+            raise _Problem("workspace.bounds", f"need x0 < x1 and y0 < y1, got {_show(b)}")
+        out["bounds"] = bb
+    if "seed" in value:
+        sd = value["seed"]
+        if not isinstance(sd, list) or len(sd) != 2:
+            raise _Problem("workspace.seed", f"expected [x, y] (m), got {_show(sd)}")
+        out["seed"] = [_number(x, f"workspace.seed[{j + 1}]") for j, x in enumerate(sd)]
+    if "max_mode" in value:
+        q = value["max_mode"]
+        if isinstance(q, bool) or not isinstance(q, int) or not 1 <= q <= 6:
+            raise _Problem("workspace.max_mode", f"expected an integer from 1 to 6, got {_show(q)}")
+        out["max_mode"] = q
+    if "all_aspects" in value:
+        aa = value["all_aspects"]
+        if not isinstance(aa, bool):
+            raise _Problem("workspace.all_aspects", f"expected true or false, got {_show(aa)}")
+        out["all_aspects"] = aa
+    if "time_budget" in value:
+        t = _number(value["time_budget"], "workspace.time_budget")
+        if t <= 0:
+            raise _Problem("workspace.time_budget", f"must be > 0 (s), got {t!r}")
+        out["time_budget"] = t
+    if "strain_samples" in value:
+        n = value["strain_samples"]
+        if isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= 1000:
+            raise _Problem("workspace.strain_samples", f"expected an integer from 0 to 1000, got {_show(n)}")
+        out["strain_samples"] = n
+    if out["bounds"] is not None and out["seed"] is not None:
+        b, s = out["bounds"], out["seed"]
+        if not (b[0] <= s[0] <= b[1] and b[2] <= s[1] <= b[3]):
+            raise _Problem("workspace.seed", f"({s[0]:g}, {s[1]:g}) lies outside the bounds {b}")
+    return out
+
+
+def _metrics(value: Any) -> tuple[str, ...]:
+    if value is None:
+        return tuple(METRICS)
+    if not isinstance(value, list) or not value:
+        raise _Problem("metrics", f"expected a non-empty list of metric names, got {_show(value)}")
+    out: list[str] = []
+    for j, m in enumerate(value):
+        if not isinstance(m, str):
+            raise _Problem(f"metrics[{j + 1}]", f"expected a metric name, got {_tname(m)} {_show(m)}")
+        if m not in METRICS:
+            close = difflib.get_close_matches(m, list(METRICS), n=1, cutoff=0.6)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise _Problem(f"metrics[{j + 1}]", f"unknown metric {m!r}{hint}; metrics: {', '.join(METRICS)}")
+        if m in out:
+            raise _Problem(f"metrics[{j + 1}]", f"duplicate metric {m!r}")
+        out.append(m)
+    return tuple(m for m in METRICS if m in out)  # the table's column order
+
+
+def _quoted(key: str) -> str:
+    return key if key.replace("_", "").isalnum() else json.dumps(key)
+
+
+def _grid_axes(value: Any, base: dict[str, Any], mech: Any) -> tuple[GridAxis, ...]:
+    if value is None:
+        raise _Problem("grid", "missing: a [grid] table with at least one parameter, e.g. \"rod.length\" = [0.9, 1.0]")
+    if not isinstance(value, dict):
+        raise _Problem("grid", f"expected a table, got {_tname(value)} {_show(value)}")
+    if not value:
+        raise _Problem("grid", "empty: give at least one parameter, e.g. \"rod.length\" = [0.9, 1.0]")
+    n = len(mech.legs)
+    axes, pks = [], []
+    for key, v in value.items():
+        path = f"grid.{_quoted(key)}"
+        if isinstance(v, dict) and not set(v) & set(_RANGE_KEYS) and v:
+            # TOML turns an unquoted dotted key (rod.length = ...) into nested tables
+            sub = next(iter(v))
+            raise _Problem(path, f"write the key in quotes: \"{key}.{sub}\" = ... (a dotted key must be quoted)")
+        try:
+            pk = _grid.parse_key(key, n)
+        except _grid.GridKeyError as e:
+            raise _Problem(path, str(e)) from None
+        vals = _values(v, path)
+        for j, x in enumerate(vals):
+            try:
+                _grid.check_value(pk, x)
+            except _grid.GridKeyError as e:
+                raise _Problem(f"{path}[{j + 1}]" if isinstance(v, list) else path, str(e)) from None
+        axes.append(GridAxis(key, vals))
+        pks.append(pk)
+    try:
+        _grid.check_keys(pks, base, mech)
+    except _grid.GridKeyError as e:
+        raise _Problem(f"grid.{_quoted(e.key)}" if e.key else "grid", str(e)) from None
+    return tuple(axes)
+
+
+def study_from_dict(data: Mapping[str, Any], source: str = "<dict>", base_dir: str | os.PathLike[str] | None = None
+                    ) -> StudySpec:
+    """Validate a parsed study file.
+
+    Parameters
+    ----------
+    data : dict
+        The study file's content (parsed TOML).
+    source : str
+        Name used in messages.
+    base_dir : path, optional
+        Directory the mechanism path is relative to (default: the directory of ``source``
+        when it is a file, else the current directory).
+
+    Raises
+    ------
+    StudyError
+    """
+    if base_dir is None:
+        base_dir = Path(source).resolve().parent if not source.startswith("<") else Path.cwd()
+    try:
+        if not isinstance(data, Mapping):
+            raise _Problem("", f"expected a table, got {_tname(data)}")
+        _check_table_keys(data, _TOP_KEYS, "")
+        if "mechanism" not in data:
+            raise _Problem("mechanism", "missing: the base mechanism file, e.g. mechanism = \"unit_3rfr.toml\"")
+        mpath, mdata, mech = _read_mechanism(data["mechanism"], Path(base_dir))
+        name = data.get("name", Path(source).stem if not source.startswith("<") else "study")
+        if not isinstance(name, str):
+            raise _Problem("name", f"expected a string, got {_tname(name)} {_show(name)}")
+        if "orientations" not in data:
+            raise _Problem("orientations", "missing: the platform orientations to map (deg), e.g. [0, 20]")
+        orient = _values(data["orientations"], "orientations", "angles (deg)")
+        axes = _grid_axes(data.get("grid"), mdata, mech)
+        metrics = _metrics(data.get("metrics"))
+        ws = _workspace(data.get("workspace"))
+        spec = StudySpec(name=name, source=source, mechanism_path=mpath, mechanism=mdata, grid=axes,
+                         orientations=orient, metrics=metrics, workspace=ws)
+        if spec.n_tasks > MAX_TASKS:
+            raise _Problem("grid", f"{spec.n_tasks} rows is too many (at most {MAX_TASKS})")
+    except _Problem as e:
+        raise StudyError(f"{source}: {e}") from None
+    return spec
+
+
+def load_study(path: str | os.PathLike[str]) -> StudySpec:
+    """Read and validate a study file (TOML).
+
+    Raises
+    ------
+    StudyError
+        With one message naming the file, the key and the problem.
+    """
+    src = os.fspath(path)
+    try:
+        with open(src, "rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
+    except FileNotFoundError:
+        raise StudyError(f"{src}: file not found") from None
+    except IsADirectoryError:
+        raise StudyError(f"{src}: is a directory, not a study file") from None
+    except OSError as e:
+        raise StudyError(f"{src}: cannot read file ({e.strerror or e})") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise StudyError(f"{src}: file too large for a study file")
+    try:
+        data = tomllib.loads(raw.decode("utf-8-sig"))
+    except UnicodeDecodeError as e:
+        raise StudyError(f"{src}: not a UTF-8 text file ({e.reason} at byte {e.start})") from None
+    except tomllib.TOMLDecodeError as e:
+        raise StudyError(f"{src}: malformed TOML: {e}") from None
+    except (RecursionError, ValueError) as e:
+        raise StudyError(f"{src}: malformed TOML: {_show(str(e))}") from None
+    return study_from_dict(data, source=src, base_dir=Path(src).resolve().parent)
