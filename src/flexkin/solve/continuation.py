@@ -44,10 +44,13 @@ SEAM_IN, SEAM_OUT = 3.0, 2.5
 
 @njit(cache=True)
 def _physical(c0, c1, EI, rod_col, L_ref, F_ref, x, chart, su, out, q, g) -> None:
-    """Chart-free state of IK unknowns: inputs (scaled), world tip forces (in EI/L^2) and tip
-    moments (in EI/L), into ``out`` (12,)."""
+    """Chart-free state of unknowns: inputs (scaled), world tip forces (in EI/L^2), tip moments
+    (in EI/L) and the pose (in L_ref, rad), into ``out`` (15,)."""
     nu = x.shape[0]
     iu = nu - 3
+    out[12] = x[nu - 6] / L_ref
+    out[13] = x[nu - 5] / L_ref
+    out[14] = x[nu - 4]
     for i in range(3):
         u = x[iu + i]
         al = c0[i, 2] + c1[i, 2] * u
@@ -65,13 +68,13 @@ def _physical(c0, c1, EI, rod_col, L_ref, F_ref, x, chart, su, out, q, g) -> Non
 
 @njit(cache=True)
 def continue_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_ref,
-                    X, charts, P1, load, cols, su, tol, chord_iter, newton_iter, ok) -> None:
-    """One continuation step of every row of ``X`` to the poses ``P1`` (in place where it
-    succeeds; see the module docstring)."""
+                    X, charts, P1, load, cols, pcols, su, tol, chord_iter, newton_iter, ok) -> None:
+    """One continuation step of every row of ``X``: the parameter columns ``pcols`` (the pose
+    for IK, the inputs for FK) move to ``P1`` and the unknown columns ``cols`` follow (in place
+    where it succeeds; see the module docstring)."""
     n, nu = X.shape
     ne = nu - 3
     p = cols.shape[0]
-    ip = nu - 6
     r = np.empty(ne)
     J = np.empty((ne, nu))
     Jd = np.empty((0, 0))
@@ -83,9 +86,9 @@ def continue_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_re
     yt = np.empty(nu)
     q = np.empty(NQ)
     g = np.empty((NQ, 3))
-    ph0 = np.empty(12)
-    php = np.empty(12)
-    phy = np.empty(12)
+    ph0 = np.empty(15)
+    php = np.empty(15)
+    phy = np.empty(15)
     for k in range(n):
         x = X[k]
         ch = charts[k]
@@ -94,7 +97,7 @@ def continue_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_re
         for a in range(p):
             b[a] = 0.0
             for c in range(3):
-                b[a] -= J[a, ip + c] * (P1[k, c] - x[ip + c])
+                b[a] -= J[a, pcols[c]] * (P1[k, c] - x[pcols[c]])
             for c in range(p):
                 A[a, c] = J[a, cols[c]]
         if not solve_into(A, b, d, work):
@@ -108,7 +111,7 @@ def continue_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_re
         for c in range(nu):
             y[c] = x[c]
         for c in range(3):
-            y[ip + c] = P1[k, c]
+            y[pcols[c]] = P1[k, c]
         for c in range(p):
             y[cols[c]] += d[c]
         _project_rods(y, ch, rod_col)
@@ -167,7 +170,7 @@ def continue_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_re
         _physical(c0, c1, EI, rod_col, L_ref, F_ref, y, ch, su, phy, q, g)
         step = 0.0
         corr = 0.0
-        for c in range(12):
+        for c in range(15):
             step = max(step, abs(php[c] - ph0[c]))
             corr = max(corr, abs(phy[c] - php[c]))
         if not corr <= 0.5 * step + 1e-6:
@@ -208,22 +211,26 @@ def to_working_charts(system: System, X: NDArray, charts: NDArray) -> tuple[NDAr
 
 
 def continue_ik(system: System, X: NDArray, charts: NDArray, pose1: NDArray, load: NDArray,
-                chord_iter: int = 6, newton_iter: int = 5) -> tuple[NDArray, NDArray, NDArray[np.bool_]]:
-    """Move IK solutions ``X`` (n, n_unknowns, the pose columns holding their poses) to the
-    poses ``pose1`` (n, 3).
+                chord_iter: int = 6, newton_iter: int = 5, fixed: str = "pose"
+                ) -> tuple[NDArray, NDArray, NDArray[np.bool_]]:
+    """Move solutions ``X`` (n, n_unknowns) to new values ``pose1`` (n, 3) of the columns held
+    fixed (``fixed="pose"``: IK solutions to new poses; ``"inputs"``: FK solutions to new inputs).
 
     Returns the new unknowns, their charts and a success flag per solution (failed rows are
     returned unchanged).  Where a rod near straight under tension fails, the step is retried
-    across the seam with the rod's mirror image (:func:`_across_seam`).
+    across the seam with the rod's mirror image.
     """
     X, charts = to_working_charts(system, np.atleast_2d(X), charts)
     P1 = np.ascontiguousarray(np.atleast_2d(pose1), dtype=float)
     load = np.asarray(load, dtype=float)
     ok = np.zeros(len(X), bool)
-    cols = system.layout.columns("pose")
+    lay = system.layout
+    cols = lay.columns(fixed)
+    sl = lay.pose if fixed == "pose" else lay.inputs
+    pcols = np.arange(sl.start, sl.stop, dtype=np.int64)
     su = system.input_scale()
     X0 = X.copy()
-    continue_kernel(*system.args(), X, charts, P1, load, cols, su, RESIDUAL_TOL, chord_iter, newton_iter, ok)
+    continue_kernel(*system.args(), X, charts, P1, load, cols, pcols, su, RESIDUAL_TOL, chord_iter, newton_iter, ok)
     near = ~ok & _near_seam(system, X0, charts)
     if np.any(near):
         idx = np.flatnonzero(near)
@@ -233,7 +240,8 @@ def continue_ik(system: System, X: NDArray, charts: NDArray, pose1: NDArray, loa
             flip = (cs[:, i] == CHART_UNIFIED) & (np.abs(Xs[:, c]) > SEAM_V)
             Xs[flip, c] = -Xs[flip, c]
         oks = np.zeros(len(idx), bool)
-        continue_kernel(*system.args(), Xs, cs, P1[idx], load, cols, su, RESIDUAL_TOL, 0, newton_iter + 4, oks)
+        continue_kernel(*system.args(), Xs, cs, P1[idx], load, cols, pcols, su, RESIDUAL_TOL, 0, newton_iter + 4,
+                        oks)
         X[idx[oks]] = Xs[oks]
         ok[idx[oks]] = True
     X[~ok] = X0[~ok]
