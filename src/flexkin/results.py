@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Iterator
+from typing import TYPE_CHECKING, Any, Iterator
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .rod.state import RodState
+if TYPE_CHECKING:
+    from .rod.state import RodState
 
 __all__ = ["Stability", "Jacobians", "Solution", "Result", "KinematicsResult", "IKDiagnostics",
            "FKDiagnostics", "finite_or_none"]

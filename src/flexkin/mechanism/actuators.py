@@ -31,9 +31,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..core.geometry2d import wrap_to_pi
 
-__all__ = ["Actuator", "Prismatic", "Revolute", "Length", "ACTUATORS", "LevelSet"]
+__all__ = ["Actuator", "Prismatic", "Revolute", "Length", "ACTUATORS", "LevelSet", "COND_LINE", "COND_CIRCLE",
+           "COND_RAY"]
 
 TWO_PI = 2.0 * math.pi
+#: kinds of geometric condition (paper §4.1) on the unit rod's tip, for the compiled searches:
+#: a line ``y = h`` (Fig. 5), a circle ``|tip| = r`` (Fig. 8), a ray of angle ``beta`` (Fig. 9)
+COND_LINE, COND_CIRCLE, COND_RAY = 0, 1, 2
 
 
 @dataclass(frozen=True)
@@ -136,6 +140,11 @@ class Actuator(ABC):
         """Input ``u``, clamp angle ``alpha`` and length ``L`` that put unit-rod tips ``(x, y)``
         (on :meth:`level_set`) at ``B``."""
 
+    @abstractmethod
+    def condition(self, B: NDArray[np.float64]) -> tuple[int, NDArray[np.float64]]:
+        """The geometric condition in the compact form the compiled searches read
+        (:mod:`flexkin.solve.conditions`): a kind code and its parameters."""
+
 
 @dataclass(frozen=True)
 class Prismatic(Actuator):
@@ -160,6 +169,11 @@ class Prismatic(Actuator):
         u = math.cos(self.angle) * d[0] + math.sin(self.angle) * d[1] - L * np.asarray(x)
         return u, np.full_like(u, self.angle), np.full_like(u, L)
 
+    def condition(self, B):
+        d = np.asarray(B, dtype=float) - np.asarray(self.origin)
+        h = (-math.sin(self.angle) * d[0] + math.cos(self.angle) * d[1]) / float(self.length)
+        return COND_LINE, np.array([h, self.angle, 0.0])
+
 
 @dataclass(frozen=True)
 class Revolute(Actuator):
@@ -183,6 +197,10 @@ class Revolute(Actuator):
         alpha = np.unwrap(math.atan2(d[1], d[0]) - np.arctan2(y, x)) if np.ndim(x) else \
             np.asarray(math.atan2(d[1], d[0]) - math.atan2(float(y), float(x)))
         return alpha, alpha, np.full_like(alpha, float(self.length))
+
+    def condition(self, B):
+        d = np.asarray(B, dtype=float) - np.asarray(self.origin)
+        return COND_CIRCLE, np.array([float(np.hypot(*d)) / float(self.length), math.atan2(d[1], d[0]), 0.0])
 
 
 @dataclass(frozen=True)
@@ -209,6 +227,10 @@ class Length(Actuator):
         d = np.asarray(B, dtype=float) - np.asarray(self.origin)
         L = float(np.hypot(*d)) / np.hypot(x, y)
         return L, np.full_like(L, self.angle), L
+
+    def condition(self, B):
+        d = np.asarray(B, dtype=float) - np.asarray(self.origin)
+        return COND_RAY, np.array([math.atan2(d[1], d[0]) - self.angle, self.angle, 0.0])
 
 
 #: actuator kinds by name (the file's ``actuation``)

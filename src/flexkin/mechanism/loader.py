@@ -40,10 +40,12 @@ import difflib
 import math
 import os
 import tomllib
+import warnings
 from pathlib import Path
 from typing import Any
 
-from flexkin.errors import MechanismError
+from flexkin.errors import FlexkinWarning, MechanismError
+from flexkin.mechanism.joints import JOINTS
 from flexkin.mechanism.model import (
     ACTUATIONS,
     LENGTH_LIMITS,
@@ -59,7 +61,7 @@ __all__ = ["load_mechanism", "mechanism_from_dict"]
 
 _TOP_KEYS = ("name", "rod", "platform", "leg", "load", "limits")
 _ROD_KEYS = ("length", "E", "radius", "EI")
-_LEG_KEYS = ("actuation", "origin", "angle", "range") + _ROD_KEYS
+_LEG_KEYS = ("actuation", "origin", "angle", "range", "joint", "tip_angle") + _ROD_KEYS
 _PLATFORM_KEYS = ("attach",)
 _LOAD_KEYS = ("force", "moment")
 _LIMITS_KEYS = ("max_strain",)
@@ -310,7 +312,24 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float]) -> Leg:
             )
         rng = (math.radians(lo), math.radians(hi)) if act == "revolute" else (lo, hi)
     rod = _resolve_rod(rod_defaults, _rod_values(table, path), act, path)
-    return Leg(actuation=act, origin=origin, angle=math.radians(angle_deg), rod=rod, range=rng)  # type: ignore[arg-type]
+    joint = table.get("joint", "pinned")
+    if not isinstance(joint, str):
+        raise _KeyProblem(f"{path}.joint", f"expected a string, got {_type_name(joint)} {_show(joint)}")
+    if joint not in JOINTS:
+        close = difflib.get_close_matches(joint.lower(), JOINTS, n=1, cutoff=0.5)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise _KeyProblem(f"{path}.joint",
+                          f"unknown joint {joint!r} (expected one of {', '.join(map(repr, JOINTS))}{hint})")
+    tip_angle = 0.0
+    if JOINTS[joint].carries_moment:
+        tip_angle = _number(_require(table, "tip_angle", path, "the rod's tangent at the platform point, in degrees "
+                                     "in the platform frame, required for a clamped joint"), f"{path}.tip_angle")
+    elif "tip_angle" in table:
+        _number(table["tip_angle"], f"{path}.tip_angle")
+        warnings.warn(f"{path}.tip_angle: ignored: a {joint} joint leaves the rod's tip free to turn "
+                      f"(tip_angle applies to joint = \"clamped\")", FlexkinWarning, stacklevel=4)
+    return Leg(actuation=act, origin=origin, angle=math.radians(angle_deg), rod=rod, range=rng,  # type: ignore[arg-type]
+               joint=joint, tip_angle=math.radians(tip_angle))  # type: ignore[arg-type]
 
 
 def _platform(value: Any) -> Platform:

@@ -28,6 +28,7 @@ from ..core.validation import check_max_mode, check_positive
 from .atlas import get_atlas, in_scope
 from .closed_form import mode_of
 from .kernels import NQ, X, Y, project, unified_eval
+from ..results import Result
 from .state import RodState
 
 __all__ = ["RodInverseResult", "solve_rod", "atlas_starts", "refine_rod", "ACCEPT_TOL"]
@@ -37,32 +38,33 @@ ACCEPT_TOL = 1e-11
 
 
 @dataclass(frozen=True)
-class RodInverseResult:
-    """All equilibria of a rod with a pinned tip.
+class RodInverseResult(Result):
+    """All equilibria of one rod whose tip is held (pinned, or clamped with ``tip_angle``).
 
     Attributes
     ----------
     solutions : tuple of RodState, sorted by (mode, energy).
     residuals : tuple of float, tip-position error of each solution (m).
     tip, clamp, clamp_angle, length, EI, max_mode : the problem data (SI, rad).
-    message : str, a one-line explanation when there is no solution.
-    elapsed : float, seconds.
+    tip_angle : float or None
+        The imposed tip tangent (rad, world) of a clamped tip; ``None`` for a pinned tip.
+    complete, message, elapsed, diagnostics : see :class:`~flexkin.results.Result`.
     """
 
-    solutions: tuple[RodState, ...]
-    residuals: tuple[float, ...]
-    tip: tuple[float, float]
-    clamp: tuple[float, float]
-    clamp_angle: float
-    length: float
-    EI: float
-    max_mode: int
-    message: str = ""
-    elapsed: float = 0.0
-    diagnostics: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+    residuals: tuple[float, ...] = ()
+    tip: tuple[float, float] = (0.0, 0.0)
+    clamp: tuple[float, float] = (0.0, 0.0)
+    clamp_angle: float = 0.0
+    length: float = 1.0
+    EI: float = 1.0
+    max_mode: int = 2
+    tip_angle: float | None = None
 
-    def __len__(self) -> int:
-        return len(self.solutions)
+    def plot(self, path: str | None = None, **kwargs: Any):
+        """The equilibria drawn over each other (like the paper's Fig. 19 set-up)."""
+        from ..plot.rod import plot_rod_solutions
+
+        return plot_rod_solutions(self, path, **kwargs)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (SPEC §4, ``flexkin rod``)."""
@@ -71,8 +73,12 @@ class RodInverseResult:
             "length": self.length,
             "EI": self.EI,
             "tip": list(self.tip),
+            "tip_angle_deg": None if self.tip_angle is None else float(np.degrees(self.tip_angle)),
+            "joint": "pinned" if self.tip_angle is None else "clamped",
             "clamp": list(self.clamp),
             "clamp_angle_deg": float(np.degrees(self.clamp_angle)),
+            "complete": self.complete,
+            "message": self.message,
             "max_mode": self.max_mode,
             "solutions": [
                 dict(s.to_dict(), residual=r) for s, r in zip(self.solutions, self.residuals)
@@ -195,20 +201,24 @@ def solve_rod(
     *,
     clamp: ArrayLike = (0.0, 0.0),
     clamp_angle: float = 0.0,
+    tip_angle: float | None = None,
     max_mode: int = 2,
 ) -> RodInverseResult:
-    """All equilibria with d-mode <= ``max_mode`` of a rod whose tip is pinned at ``tip``.
+    """All equilibria with d-mode <= ``max_mode`` of a rod whose tip is held at ``tip``:
+    pinned (``tip_angle=None``), or clamped with the tangent ``tip_angle``.
 
     Parameters
     ----------
     tip : (2,) array_like
-        Pinned tip point, world frame (m).
+        Tip point, world frame (m).
     length, EI : float
         Rod length (m, > 0) and bending stiffness (N m^2, > 0).
     clamp : (2,) array_like
         Clamp point (m).
     clamp_angle : float
         Clamp tangent angle (rad).
+    tip_angle : float, optional
+        Tip tangent angle (rad, world frame) of a clamped tip; ``None`` for a pinned tip.
     max_mode : int
         Largest d-mode searched (>= 1).
 
@@ -228,22 +238,26 @@ def solve_rod(
     max_mode = check_max_mode(max_mode)
     if not (np.all(np.isfinite(tip)) and np.all(np.isfinite(clamp)) and np.isfinite(clamp_angle)):
         raise ValueError("tip, clamp and clamp_angle must be finite numbers")
+    if tip_angle is not None and not np.isfinite(tip_angle):
+        raise ValueError(f"tip_angle must be a finite number (rad) or None, got {tip_angle!r}")
     local = rot2(-clamp_angle) @ (tip - clamp) / length
     base = dict(tip=(float(tip[0]), float(tip[1])), clamp=(float(clamp[0]), float(clamp[1])),
-                clamp_angle=float(clamp_angle), length=float(length), EI=float(EI), max_mode=int(max_mode))
+                clamp_angle=float(clamp_angle), length=float(length), EI=float(EI), max_mode=int(max_mode),
+                tip_angle=None if tip_angle is None else float(tip_angle))
     dist = float(np.hypot(*local))
     if dist > 1.0 + 1e-12:
-        return RodInverseResult((), (), message=(
-            f"tip is {dist * length:.6g} m from the clamp, beyond the rod length {length:.6g} m"),
-            elapsed=time.perf_counter() - t0, **base)
-
+        return RodInverseResult(message=f"tip is {dist * length:.6g} m from the clamp, beyond the rod length "
+                                        f"{length:.6g} m", elapsed=time.perf_counter() - t0, **base)
+    if tip_angle is not None:
+        return _solve_clamped(local, float(tip_angle) - clamp_angle, t0, base)
     if dist >= 1.0 - 1e-12 and abs(float(np.arctan2(local[1], local[0]))) < 1e-9:
         # at full reach along the clamp axis only the straight rod fits, and being
         # inextensible it carries any axial force: a continuum; the unloaded one is reported
         st = RodState.from_chart(0.0, np.pi / 2, length, EI, clamp, clamp_angle)
-        return RodInverseResult((st,), (float(np.hypot(*(np.array(st.tip) - tip))),), message=(
-            "tip at full reach on the clamp axis: the straight rod carries any axial force; the unloaded "
-            "one is reported"), elapsed=time.perf_counter() - t0, **base)
+        return RodInverseResult(solutions=(st,), residuals=(float(np.hypot(*(np.array(st.tip) - tip))),),
+                                message="tip at full reach on the clamp axis: the straight rod carries any axial "
+                                        "force; the unloaded one is reported",
+                                elapsed=time.perf_counter() - t0, **base)
     starts = atlas_starts(local, max_mode)
     res = refine_rod(starts, local)
     ok = res.converged & (mode_of(res.z[:, 1]) <= max_mode) & in_scope(res.z[:, :1])
@@ -256,12 +270,31 @@ def solve_rod(
     fs, ms = EI / length**2, EI / length
     phys = np.array([[st.tip_force[0] / fs, st.tip_force[1] / fs, st.base_moment / ms] for st in states]).reshape(-1, 3)
     states = [states[i] for i in unique_rows(phys, 1e-7)]
+    return _result(states, tip, t0, base, {"starts": int(len(starts)), "converged": int(np.count_nonzero(res.converged))})
+
+
+def _result(states: list[RodState], tip: NDArray, t0: float, base: dict, diag: dict) -> RodInverseResult:
     resid = [float(np.hypot(s.tip[0] - tip[0], s.tip[1] - tip[1])) for s in states]
     pairs = sorted(zip(states, resid), key=lambda sr: (sr[0].mode, sr[0].energy, sr[0].k))
-    msg = "" if pairs else f"no equilibrium with d-mode <= {max_mode} reaches the tip point"
-    return RodInverseResult(
-        tuple(p[0] for p in pairs), tuple(p[1] for p in pairs), message=msg,
-        elapsed=time.perf_counter() - t0,
-        diagnostics={"starts": int(len(starts)), "converged": int(np.count_nonzero(res.converged))},
-        **base,
-    )
+    what = "reaches the tip point" if base["tip_angle"] is None else "reaches the tip point with that tangent"
+    msg = "" if pairs else f"no equilibrium with d-mode <= {base['max_mode']} {what}"
+    return RodInverseResult(solutions=tuple(p[0] for p in pairs), residuals=tuple(p[1] for p in pairs), message=msg,
+                            elapsed=time.perf_counter() - t0, diagnostics=diag, **base)
+
+
+def _solve_clamped(local: NDArray, local_angle: float, t0: float, base: dict) -> RodInverseResult:
+    """A rod clamped at both ends: every root in the wrench chart (:mod:`flexkin.rod.clamped`)."""
+    from .clamped import clamped_rod_roots
+    from .kernels import CHART_WRENCH, eval_rods
+    from .wrench import wrench_mode
+
+    Z, diag = clamped_rod_roots(float(local[0]), float(local[1]), local_angle, base["max_mode"])
+    q = np.empty((len(Z), NQ))
+    g = np.empty((len(Z), NQ, 3))
+    eval_rods(np.full(len(Z), CHART_WRENCH, dtype=np.int64), np.ascontiguousarray(Z), q, g)
+    states = []
+    for z, qq in zip(Z, q):
+        mode, boundary = wrench_mode(z[0], z[1], z[2], 1e-8)
+        states.append(RodState.from_unit(qq, CHART_WRENCH, z, base["length"], base["EI"], base["clamp"],
+                                         base["clamp_angle"], mode, "clamped", boundary))
+    return _result(states, np.array(base["tip"]), t0, base, diag)

@@ -37,18 +37,15 @@ import numpy as np
 from ..core.jit import njit
 
 from .elliptic import HALF_PI, complete, fedb, inverse_f
+from .slots import (CHART_DIM, CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, EN, FX, FY, M0, ML, NQ, PHI, TH, X,
+                    Y)
+from .wrench import wrench_eval, wrench_profile
 
 __all__ = [
     "NQ", "X", "Y", "TH", "FX", "FY", "M0", "ML", "EN", "PHI",
     "CHART_UNIFIED", "CHART_SEAM", "CHART_WRENCH", "CHART_DIM",
-    "unified_eval", "seam_eval", "eval_rod", "project", "V_MAX", "eval_rods",
+    "unified_eval", "seam_eval", "eval_rod", "project", "V_MAX", "eval_rods", "profile", "tangents",
 ]
-
-X, Y, TH, FX, FY, M0, ML, EN, PHI = range(9)
-NQ = 9
-CHART_UNIFIED, CHART_SEAM, CHART_WRENCH = 0, 1, 2
-#: number of coordinates of each chart
-CHART_DIM = (2, 2, 3)
 
 
 @njit(cache=True)
@@ -250,8 +247,7 @@ def eval_rod(chart: int, z: np.ndarray, out: np.ndarray, grad: np.ndarray) -> No
     elif chart == CHART_SEAM:
         seam_eval(z[0], z[1], out, grad)
     else:
-        out[:] = np.nan
-        grad[:, :] = np.nan
+        wrench_eval(z[0], z[1], z[2], out, grad)
 
 
 @njit(cache=True)
@@ -310,7 +306,7 @@ def profile(chart: int, z: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
     if chart == CHART_UNIFIED:
         unified_profile(z[0], z[1], s, out)
     else:
-        out[:, :] = np.nan
+        wrench_profile(z[0], z[1], z[2], s, out)
 
 
 @njit

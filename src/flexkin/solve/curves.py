@@ -46,9 +46,12 @@ class LegCurve:
         return len(self.branches)
 
 
-def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, force_tol: float = 0.05,
+def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.0, force_tol: float = 0.05,
                passes: int = 8) -> list[LegCurve]:
-    """Geometric-condition curves of the pinned legs for world attach points ``B`` (3, 2).
+    """Geometric-condition curves of the legs for world attach points ``B`` (3, 2) and platform
+    orientation ``theta`` (clamped legs: :func:`flexkin.solve.clamped_curves.clamped_leg_curve`).
+
+    For a pinned leg:
 
     The marching-squares polylines are snapped onto the exact level set (Newton along the
     local normal, closed form) and refined by bisection wherever the rod force jumps by
@@ -70,6 +73,11 @@ def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, force_tol: float 
     atlas = get_atlas(max_mode)
     out = []
     for i, leg in enumerate(mech.legs):
+        if leg.platform_joint.carries_moment:
+            from .clamped_curves import clamped_leg_curve
+
+            out.append(clamped_leg_curve(mech, i, B[i], theta, max_mode))
+            continue
         act = leg.actuator
         ls = act.level_set(B[i])
         f, mask_f = ls.g, ls.mask
@@ -150,5 +158,6 @@ def _branch_data(leg, B, v, phis) -> dict[str, NDArray]:
     F = leg.rod.EI / L**2 * t.R
     force = rotate(np.stack([np.cos(t.psi), np.sin(t.psi)], -1), alpha) * F[:, None]
     k, psi, q = to_paper(ku, phis)
-    return {"v": v, "ku": ku, "phis": phis, "k": k, "psi": psi, "kr": kr_from_k(k, psi), "mode": mode_of(phis),
-            "input": u, "force": force, "length": L}
+    return {"v": v, "ku": ku, "phis": phis, "z": np.stack([v, phis], -1), "k": k, "psi": psi,
+            "kr": kr_from_k(k, psi), "mode": mode_of(phis), "input": u, "force": force, "length": L,
+            "tip_moment": np.zeros_like(v)}

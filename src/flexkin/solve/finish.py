@@ -21,7 +21,9 @@ from ..core.geometry2d import wrap_to_pi
 from ..results import Solution
 from ..rod.atlas import in_scope
 from ..rod.closed_form import mode_of, standard_chart
-from ..rod.kernels import CHART_WRENCH
+from ..rod.kernels import CHART_WRENCH, TH
+from ..rod.wrench import wrench_mode
+from ..rod.wrench_atlas import in_wrench_scope
 from ..rod.state import RodState
 from ..system import System
 
@@ -39,26 +41,55 @@ def canonical(system: System, X: NDArray) -> NDArray[np.float64]:
     return X
 
 
-def rod_modes(system: System, X: NDArray, charts: NDArray) -> NDArray[np.int64]:
-    """d-mode of every rod (n, 3)."""
-    modes = np.ones((len(X), 3), np.int64)
+#: a rod whose base moment (or, for a clamped tip, tip moment) is below this, relative to its
+#: moment scale, has an inflection at that end to within the solver's resolution
+BOUNDARY_RTOL = 1e-8
+
+
+def rod_modes(system: System, X: NDArray, charts: NDArray, with_boundary: bool = False):
+    """d-mode of every rod (n, 3) (SPEC §2), and with ``with_boundary`` also the ``mode_boundary``
+    flags (n, 3): an inflection at an end of the rod to within :data:`BOUNDARY_RTOL`.
+
+    A pinned rod's mode is the number of inflection points on (0, L] (its unified clamp
+    amplitude, :func:`~flexkin.rod.closed_form.mode_of`); a base inflection does not count, so
+    a rod on the boundary between two modes carries the lower label whichever side the solver
+    came from.  A clamped rod's mode is 1 + the inflections strictly inside.
+    """
+    n = len(X)
+    modes = np.ones((n, 3), np.int64)
+    boundary = np.zeros((n, 3), bool)
     for i in range(3):
         z = X[:, system.layout.rod[i]]
         pinned = charts[:, i] != CHART_WRENCH
         if np.any(pinned):
-            _, ph = standard_chart(z[pinned, 0], z[pinned, 1])
-            modes[pinned, i] = mode_of(ph)
-    return modes
+            v, ph = standard_chart(z[pinned, 0], z[pinned, 1])
+            # phis at a base inflection is -pi/2 - j pi: snap to it within the resolution, so
+            # that the label is a property of the configuration (the lower one), not of rounding
+            j = np.round((-0.5 * np.pi - ph) / np.pi)
+            on = (j >= 0) & (np.abs(ph - (-0.5 * np.pi - j * np.pi)) < BOUNDARY_RTOL)
+            modes[pinned, i] = np.where(on, j + 1, mode_of(ph))
+            boundary[pinned, i] = on
+        for k in np.flatnonzero(~pinned):
+            modes[k, i], boundary[k, i] = wrench_mode(z[k, 0], z[k, 1], z[k, 2], BOUNDARY_RTOL)
+    return (modes, boundary) if with_boundary else modes
 
 
-def _in_scope(system: System, X: NDArray, charts: NDArray) -> NDArray[np.bool_]:
+def _in_scope(system: System, X: NDArray, charts: NDArray, modes: NDArray, max_mode: int) -> NDArray[np.bool_]:
+    """Solutions whose rods are all in the searched set: pinned rods with ``k' >= KPRIME_MIN / 2``
+    (:mod:`flexkin.rod.atlas`), clamped rods within the wrench atlas' scope
+    (:func:`~flexkin.rod.wrench_atlas.in_wrench_scope`)."""
     ok = np.ones(len(X), bool)
+    if len(X) == 0:
+        return ok
+    q, _ = system.unit_rods(X, charts)
     for i in range(3):
+        z = X[:, system.layout.rod[i]]
         pinned = charts[:, i] != CHART_WRENCH
         if np.any(pinned):
-            z = X[pinned][:, system.layout.rod[i]]
-            v, _ = standard_chart(z[:, 0], z[:, 1])
+            v, _ = standard_chart(z[pinned, 0], z[pinned, 1])
             ok[pinned] &= in_scope(v[:, None])
+        if np.any(~pinned):
+            ok[~pinned] &= in_wrench_scope(z[~pinned], q[~pinned, i, TH], modes[~pinned, i], max_mode)
     return ok
 
 
@@ -102,7 +133,8 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
     """Reported solutions from refined candidates (module docstring)."""
     X = canonical(system, X)
     modes = rod_modes(system, X, charts)
-    ok = np.all(modes <= max_mode, axis=1) & _in_scope(system, X, charts) & np.all(np.isfinite(X), axis=1)
+    ok = np.all(modes <= max_mode, axis=1) & np.all(np.isfinite(X), axis=1)
+    ok[ok] &= _in_scope(system, X[ok], charts[ok], modes[ok], max_mode)
     X, charts, residual, modes = X[ok], charts[ok], residual[ok], modes[ok]
     if len(X) == 0:
         return []
@@ -123,8 +155,9 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
         return []
     if residual is None:
         residual = np.max(np.abs(system.residual(X, charts, load)), axis=1)
+    modes_b, boundary = rod_modes(system, X, charts, with_boundary=True)
     if modes is None:
-        modes = rod_modes(system, X, charts)
+        modes = modes_b
     stab = mechanism_stability(system, X, charts)
     jac = kinematic_jacobians(system, X, charts, load)
     q, _ = system.unit_rods(X, charts)
@@ -133,7 +166,8 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
     sols = []
     for j in range(len(X)):
         rods = tuple(RodState.from_unit(q[j, i], int(charts[j, i]), X[j, lay.rod[i]], L[j, i], system.EI[i],
-                                        A[j, i], alpha[j, i], int(modes[j, i]), mech.legs[i].joint)
+                                        A[j, i], alpha[j, i], int(modes[j, i]), mech.legs[i].joint,
+                                        bool(boundary[j, i]))
                      for i in range(3))
         st = stab.item(j)
         sols.append(Solution(mech, tuple(float(v) for v in X[j, lay.pose]), tuple(float(v) for v in X[j, lay.inputs]),

@@ -71,24 +71,26 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     deadline = None if time_budget is None else t0 + check_budget(time_budget)
     system = System.from_mechanism(mech)
     B = system.platform_points(pose[None])[0]
-    curves = leg_curves(mech, B, max_mode)
+    curves = leg_curves(mech, B, max_mode, theta=float(pose[2]))
     diag: dict[str, Any] = {"branches": tuple(len(c) for c in curves)}
 
     # ---- step 2: equilibrium triples on the polylines (wrench space) -----------------------
     wscale = system.wrench_scale()
+    lay = system.layout
     p0s, p1s, zs, us = [], [], [], []
     for i, c in enumerate(curves):
         arm = B[i] - pose[:2]
         P0, P1, Z0, Z1, U0, U1 = [], [], [], [], [], []
         for br in c.branches:
             f = br["force"]
-            wr = np.stack([f[:, 0], f[:, 1], arm[0] * f[:, 1] - arm[1] * f[:, 0]], -1) / wscale
-            z = np.stack([br["v"], br["phis"]], -1)
+            wr = np.stack([f[:, 0], f[:, 1], arm[0] * f[:, 1] - arm[1] * f[:, 0] + br["tip_moment"]], -1) / wscale
+            z = br["z"]
             P0.append(wr[:-1]); P1.append(wr[1:]); Z0.append(z[:-1]); Z1.append(z[1:])
             U0.append(br["input"][:-1]); U1.append(br["input"][1:])
         cat = (lambda L, d: np.concatenate(L) if L else np.zeros((0,) + d))
+        dim = lay.rod[i].stop - lay.rod[i].start
         p0s.append(cat(P0, (3,))); p1s.append(cat(P1, (3,)))
-        zs.append((cat(Z0, (2,)), cat(Z1, (2,)))); us.append((cat(U0, ()), cat(U1, ())))
+        zs.append((cat(Z0, (dim,)), cat(Z1, (dim,)))); us.append((cat(U0, ()), cat(U1, ())))
     seg, s, complete = equilibrium_triples(p0s, p1s, w / wscale, deadline=deadline)
     diag["candidates"] = int(len(seg))
     diag["search_complete"] = complete
@@ -97,7 +99,6 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
             "search stopped early (time or node budget) before any candidate was found"
         return KinematicsResult((), complete, msg, time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech,
                                 tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves)
-    lay = system.layout
     X = np.zeros((len(seg), lay.n_unknowns))
     X[:, lay.pose] = pose
     for i in range(3):

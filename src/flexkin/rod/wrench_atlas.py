@@ -1,0 +1,125 @@
+"""Dimensionless atlas of the rods with a free tip (clamped joints), over their wrench chart.
+
+Every rod of a clamped leg is a scaled unit rod (:mod:`flexkin.rod.wrench`), so one grid of
+unit rods serves every clamped leg of every mechanism, as :mod:`flexkin.rod.atlas` does for
+pinned rods.  The grid is polar in the base force and scaled in the base moment:
+
+* ``lambda = sqrt(|n|)`` from 0 to :func:`lambda_max` (denser near 0);
+* ``psi`` (the force direction) over ``[0, 2 pi)``, periodic;
+* ``m0 = (2 lambda + 2 pi q_max) t`` with ``t`` in [-1, 1]: a librating rod has
+  ``|m0| < 2 lambda``, a rotating one turns its tangent by about ``|m0|`` when the force is small.
+
+Scope: rods with ``lambda L <= lambda_max(q_max) = 4 + 6 q_max`` (forces up to ``256 EI/L^2``
+for ``q_max = 2``), d-mode ``<= q_max`` and a tangent that turns by at most ``2 pi q_max``
+(coils beyond that are not searched).  The arrays are cached on disk.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.cache import cached_arrays
+from ..core.jit import njit
+from .slots import NQ, TH, X, Y
+from .wrench import wrench_eval, wrench_mode
+
+__all__ = ["WrenchAtlas", "get_wrench_atlas", "lambda_max", "turning_max", "in_wrench_scope"]
+
+N_LAM, N_PSI, N_T = 48, 96, 97
+
+
+def lambda_max(max_mode: int) -> float:
+    """Largest ``lambda L`` of a clamped rod searched with d-modes up to ``max_mode``."""
+    return 4.0 + 6.0 * max_mode
+
+
+def turning_max(max_mode: int) -> float:
+    """Largest tangent turning ``|theta(L) - theta(0)|`` searched (rad)."""
+    return 2.0 * math.pi * max_mode
+
+
+def moment_scale(lam: NDArray, max_mode: int) -> NDArray:
+    """The base-moment range ``2 lambda + 2 pi q_max`` of the grid at ``lambda``."""
+    return 2.0 * np.asarray(lam) + 2.0 * math.pi * max_mode
+
+
+def in_wrench_scope(z: NDArray, th: NDArray, mode: NDArray, max_mode: int) -> NDArray[np.bool_]:
+    """Whether clamped unit rods (base wrench ``z`` (n, 3), tip angle ``th``, d-mode) are searched."""
+    lam = np.hypot(z[:, 0], z[:, 1]) ** 0.5
+    return (lam <= lambda_max(max_mode) * (1 + 1e-9)) & (np.abs(th) <= turning_max(max_mode) + 1e-9) \
+        & (mode <= max_mode)
+
+
+@njit
+def _fill(lam, psi, t, max_mode, mscale, x, y, th, mode) -> None:
+    q = np.empty(NQ)
+    g = np.empty((NQ, 3))
+    for i in range(lam.shape[0]):
+        R = lam[i] * lam[i]
+        for j in range(psi.shape[0]):
+            a, b = R * math.cos(psi[j]), R * math.sin(psi[j])
+            for k in range(t.shape[0]):
+                m0 = mscale[i] * t[k]
+                wrench_eval(a, b, m0, q, g)
+                x[i, j, k], y[i, j, k], th[i, j, k] = q[X], q[Y], q[TH]
+                mode[i, j, k] = wrench_mode(a, b, m0, 1e-9)[0]
+
+
+@dataclass(frozen=True)
+class WrenchAtlas:
+    """Unit rods on the ``(lambda, psi, t)`` grid: ``x, y, th`` (n_lam, n_psi, n_t) tip position
+    and tip angle, ``mode`` (d-mode), ``valid`` (in scope)."""
+
+    max_mode: int
+    lam: NDArray[np.float64]
+    psi: NDArray[np.float64]
+    t: NDArray[np.float64]
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    th: NDArray[np.float64]
+    mode: NDArray[np.int64]
+    valid: NDArray[np.bool_]
+
+    @property
+    def mscale(self) -> NDArray[np.float64]:
+        """Base-moment scale at each ``lambda`` node."""
+        return moment_scale(self.lam, self.max_mode)
+
+    def wrench(self, i: NDArray, j: NDArray, k: NDArray) -> NDArray[np.float64]:
+        """Chart coordinates ``(a, b, m0)`` of (fractional) grid indices (n, 3)."""
+        lam = np.interp(i, np.arange(len(self.lam)), self.lam)
+        psi = np.asarray(j, dtype=float) * (2 * np.pi / len(self.psi))
+        tt = np.interp(k, np.arange(len(self.t)), self.t)
+        R = lam**2
+        return np.stack([R * np.cos(psi), R * np.sin(psi), moment_scale(lam, self.max_mode) * tt], -1)
+
+
+@lru_cache(maxsize=6)
+def get_wrench_atlas(max_mode: int) -> WrenchAtlas:
+    """The atlas of clamped unit rods with d-modes up to ``max_mode`` (memory and disk cache)."""
+    lam = lambda_max(max_mode) * np.linspace(0.0, 1.0, N_LAM) ** 1.5
+    psi = np.arange(N_PSI) * (2 * np.pi / N_PSI)
+    t = np.linspace(-1.0, 1.0, N_T)
+
+    def build():
+        shape = (N_LAM, N_PSI, N_T)
+        x, y, th = np.empty(shape), np.empty(shape), np.empty(shape)
+        mode = np.empty(shape, np.int64)
+        _fill(lam, psi, t, max_mode, moment_scale(lam, max_mode), x, y, th, mode)
+        return {"x": x, "y": y, "th": th, "mode": mode}
+
+    a = cached_arrays("wrench-atlas", (max_mode, N_LAM, N_PSI, N_T), build)
+    valid = (a["mode"] <= max_mode) & (np.abs(a["th"]) <= turning_max(max_mode)) & np.isfinite(a["x"])
+    return WrenchAtlas(max_mode, lam, psi, t, a["x"], a["y"], a["th"], a["mode"], valid)
+
+
+def cell_corners(A: NDArray) -> NDArray:
+    """The 8 corner values (8, n_lam - 1, n_psi, n_t - 1) of every grid cell (``psi`` periodic)."""
+    An = np.roll(A, -1, axis=1)
+    return np.stack([A[:-1, :, :-1], A[1:, :, :-1], An[:-1, :, :-1], An[1:, :, :-1],
+                     A[:-1, :, 1:], A[1:, :, 1:], An[:-1, :, 1:], An[1:, :, 1:]])
