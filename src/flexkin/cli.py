@@ -155,9 +155,11 @@ def _build_parser() -> argparse.ArgumentParser:
     wk.add_argument("--save", metavar="FILE", help="save the maps (.npz; one file per orientation, suffixed)")
     wk.add_argument("--json", action="store_true", help="print a JSON summary")
     wk.add_argument("--plot", metavar="FILE", help="figure like Fig. 17, one panel per orientation")
+    from .explore.cli import add_explore_parser
     from .study.cli import add_study_parser
 
     add_study_parser(sub)
+    add_explore_parser(sub)
     rp = sub.add_parser("reproduce", help="run the paper's whole analysis on the bundled examples; write a report")
     rp.add_argument("--out", default="flexkin_report", help="output directory (default flexkin_report)")
     rp.add_argument("--quick", action="store_true", help="coarse grids and sweeps (about 20 s)")
@@ -239,6 +241,12 @@ def _cmd_workspace(a) -> int:
         plot_workspace(results, a.plot, color_by=a.color)
         print(f"figure written to {a.plot}", file=sys.stderr)
     return 0
+
+
+def _cmd_explore(a) -> int:
+    from .explore.cli import run_explore_command
+
+    return run_explore_command(a)
 
 
 def _cmd_study(a) -> int:
@@ -464,7 +472,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         _check_outputs(a)
         handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics, "fk": _cmd_kinematics,
                    "path": _cmd_path, "workspace": _cmd_workspace, "reproduce": _cmd_reproduce,
-                   "study": _cmd_study}[a.command]
+                   "study": _cmd_study, "explore": _cmd_explore}[a.command]
         return handler(a)
     except CLIError as e:
         print(str(e), file=sys.stderr)
