@@ -264,8 +264,23 @@ def eval_one(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_re
              x, chart, load, r, J, want_J, q, g) -> None:
     """Residual ``r`` (and, with ``want_J``, its Jacobian ``J``) of one candidate ``x``.
 
-    ``q`` (NQ,) and ``g`` (NQ, 3) are scratch arrays for the rod kernels.
+    ``q`` (3, NQ) and ``g`` (3, NQ, 3) are scratch arrays for the rods' unit quantities.
     """
+    nu = x.shape[0]
+    for i in range(3):
+        col = rod_col[i]
+        dim = 3 if chart[i] == CHART_WRENCH else 2
+        eval_rod(chart[i], x[col:col + dim], q[i], g[i])
+    assemble(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_ref, x, chart, load, r, J, want_J,
+             q, g)
+    _ = nu
+
+
+@njit(cache=True)
+def assemble(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_ref,
+             x, chart, load, r, J, want_J, q, g) -> None:
+    """The residual and Jacobian of candidate ``x`` from its rods' unit quantities ``q`` (3, NQ)
+    and chart gradients ``g`` (3, NQ, 3) (evaluated by :func:`eval_one`, or cached by a search)."""
     nu = x.shape[0]
     ne = r.shape[0]
     ip = nu - 6   # first pose column
@@ -282,6 +297,8 @@ def eval_one(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_re
     inv_F = 1.0 / F_ref
     inv_M = 1.0 / (F_ref * L_ref)
     for i in range(3):
+        qi = q[i]
+        gi = g[i]
         u = x[iu + i]
         Ax = c0[i, 0] + c1[i, 0] * u
         Ay = c0[i, 1] + c1[i, 1] * u
@@ -289,22 +306,20 @@ def eval_one(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_re
         L = c0[i, 3] + c1[i, 3] * u
         dAx, dAy, dal, dL = c1[i, 0], c1[i, 1], c1[i, 2], c1[i, 3]
         col = rod_col[i]
-        cc = chart[i]
-        dim = 3 if cc == CHART_WRENCH else 2
-        eval_rod(cc, x[col:col + dim], q, g)
+        dim = 3 if chart[i] == CHART_WRENCH else 2
         ca, sa = math.cos(al), math.sin(al)
         # rotated unit-rod tip and force (local -> world directions)
-        rx = ca * q[X] - sa * q[Y]
-        ry = sa * q[X] + ca * q[Y]
+        rx = ca * qi[X] - sa * qi[Y]
+        ry = sa * qi[X] + ca * qi[Y]
         tipx = Ax + L * rx
         tipy = Ay + L * ry
         sf = EI[i] / (L * L)
-        wx = ca * q[FX] - sa * q[FY]
-        wy = sa * q[FX] + ca * q[FY]
+        wx = ca * qi[FX] - sa * qi[FY]
+        wy = sa * qi[FX] + ca * qi[FY]
         fx = sf * wx
         fy = sf * wy
         sm = EI[i] / L
-        mL = sm * q[ML]
+        mL = sm * qi[ML]
         bx = cth * attach[i, 0] - sth * attach[i, 1]
         by = sth * attach[i, 0] + cth * attach[i, 1]
         row = tip_row[i]
@@ -312,23 +327,23 @@ def eval_one(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_re
         r[row + 1] = (tipy - py - by) * inv_L
         clamped = joint[i] == CLAMPED
         if clamped:
-            r[row + 2] = wrap(al + q[TH] - th - tip_angle[i])
+            r[row + 2] = wrap(al + qi[TH] - th - tip_angle[i])
         fsum_x += fx
         fsum_y += fy
         msum += bx * fy - by * fx + mL
         if want_J:
             for j in range(dim):
-                gx = L * (ca * g[X, j] - sa * g[Y, j])
-                gy = L * (sa * g[X, j] + ca * g[Y, j])
+                gx = L * (ca * gi[X, j] - sa * gi[Y, j])
+                gy = L * (sa * gi[X, j] + ca * gi[Y, j])
                 J[row, col + j] = gx * inv_L
                 J[row + 1, col + j] = gy * inv_L
-                gfx = sf * (ca * g[FX, j] - sa * g[FY, j])
-                gfy = sf * (sa * g[FX, j] + ca * g[FY, j])
+                gfx = sf * (ca * gi[FX, j] - sa * gi[FY, j])
+                gfy = sf * (sa * gi[FX, j] + ca * gi[FY, j])
                 J[rf, col + j] = gfx * inv_F
                 J[rf + 1, col + j] = gfy * inv_F
-                J[rf + 2, col + j] = (bx * gfy - by * gfx + sm * g[ML, j]) * inv_M
+                J[rf + 2, col + j] = (bx * gfy - by * gfx + sm * gi[ML, j]) * inv_M
                 if clamped:
-                    J[row + 2, col + j] = g[TH, j]
+                    J[row + 2, col + j] = gi[TH, j]
             # inputs: d/du of tip, force, moment through the affine clamp map
             dtx = dAx + dL * rx - L * dal * ry
             dty = dAy + dL * ry + L * dal * rx
@@ -339,7 +354,7 @@ def eval_one(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_re
             dfy = dsf * wy + sf * dal * wx
             J[rf, iu + i] = dfx * inv_F
             J[rf + 1, iu + i] = dfy * inv_F
-            dmL = -EI[i] * dL / (L * L) * q[ML]
+            dmL = -EI[i] * dL / (L * L) * qi[ML]
             J[rf + 2, iu + i] = (bx * dfy - by * dfx + dmL) * inv_M
             if clamped:
                 J[row + 2, iu + i] = dal
@@ -359,8 +374,8 @@ def eval_one(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_re
 def evaluate(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_ref,
              X, charts, load, R, J, want_J) -> None:
     """:func:`eval_one` for every row of ``X``; non-finite rod evaluations give NaN rows."""
-    q = np.empty(NQ)
-    g = np.empty((NQ, 3))
+    q = np.empty((3, NQ))
+    g = np.empty((3, NQ, 3))
     Jd = np.empty((0, 0))
     for k in range(X.shape[0]):
         if want_J:

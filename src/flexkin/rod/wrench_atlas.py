@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from ..core.cache import cached_arrays
 from ..core.jit import njit
-from .slots import NQ, TH, X, Y
+from .slots import ML, NQ, TH, X, Y
 from .wrench import wrench_eval, wrench_mode
 
 __all__ = ["WrenchAtlas", "get_wrench_atlas", "lambda_max", "turning_max", "in_wrench_scope"]
@@ -56,7 +56,7 @@ def in_wrench_scope(z: NDArray, th: NDArray, mode: NDArray, max_mode: int) -> ND
 
 
 @njit
-def _fill(lam, psi, t, max_mode, mscale, x, y, th, mode) -> None:
+def _fill(lam, psi, t, max_mode, mscale, x, y, th, ml, mode) -> None:
     q = np.empty(NQ)
     g = np.empty((NQ, 3))
     for i in range(lam.shape[0]):
@@ -66,14 +66,14 @@ def _fill(lam, psi, t, max_mode, mscale, x, y, th, mode) -> None:
             for k in range(t.shape[0]):
                 m0 = mscale[i] * t[k]
                 wrench_eval(a, b, m0, q, g)
-                x[i, j, k], y[i, j, k], th[i, j, k] = q[X], q[Y], q[TH]
+                x[i, j, k], y[i, j, k], th[i, j, k], ml[i, j, k] = q[X], q[Y], q[TH], q[ML]
                 mode[i, j, k] = wrench_mode(a, b, m0, 1e-9)[0]
 
 
 @dataclass(frozen=True)
 class WrenchAtlas:
-    """Unit rods on the ``(lambda, psi, t)`` grid: ``x, y, th`` (n_lam, n_psi, n_t) tip position
-    and tip angle, ``mode`` (d-mode), ``valid`` (in scope)."""
+    """Unit rods on the ``(lambda, psi, t)`` grid: ``x, y, th, ml`` (n_lam, n_psi, n_t) tip
+    position, tip angle and tip moment, ``mode`` (d-mode), ``valid`` (in scope)."""
 
     max_mode: int
     lam: NDArray[np.float64]
@@ -82,6 +82,7 @@ class WrenchAtlas:
     x: NDArray[np.float64]
     y: NDArray[np.float64]
     th: NDArray[np.float64]
+    ml: NDArray[np.float64]
     mode: NDArray[np.int64]
     valid: NDArray[np.bool_]
 
@@ -108,14 +109,14 @@ def get_wrench_atlas(max_mode: int) -> WrenchAtlas:
 
     def build():
         shape = (N_LAM, N_PSI, N_T)
-        x, y, th = np.empty(shape), np.empty(shape), np.empty(shape)
+        x, y, th, ml = np.empty(shape), np.empty(shape), np.empty(shape), np.empty(shape)
         mode = np.empty(shape, np.int64)
-        _fill(lam, psi, t, max_mode, moment_scale(lam, max_mode), x, y, th, mode)
-        return {"x": x, "y": y, "th": th, "mode": mode}
+        _fill(lam, psi, t, max_mode, moment_scale(lam, max_mode), x, y, th, ml, mode)
+        return {"x": x, "y": y, "th": th, "ml": ml, "mode": mode}
 
-    a = cached_arrays("wrench-atlas", (max_mode, N_LAM, N_PSI, N_T), build)
+    a = cached_arrays("wrench-atlas", (max_mode, N_LAM, N_PSI, N_T, 2), build)
     valid = (a["mode"] <= max_mode) & (np.abs(a["th"]) <= turning_max(max_mode)) & np.isfinite(a["x"])
-    return WrenchAtlas(max_mode, lam, psi, t, a["x"], a["y"], a["th"], a["mode"], valid)
+    return WrenchAtlas(max_mode, lam, psi, t, a["x"], a["y"], a["th"], a["ml"], a["mode"], valid)
 
 
 def cell_corners(A: NDArray) -> NDArray:

@@ -57,13 +57,13 @@ def _physical(c0, c1, EI, rod_col, L_ref, F_ref, x, chart, su, out, q, g) -> Non
         L = c0[i, 3] + c1[i, 3] * u
         col = rod_col[i]
         dim = 3 if chart[i] == CHART_WRENCH else 2
-        eval_rod(chart[i], x[col:col + dim], q, g)
+        eval_rod(chart[i], x[col:col + dim], q[i], g[i])
         sf = EI[i] / (L * L) / F_ref
         ca, sa = math.cos(al), math.sin(al)
         out[i] = u / su[i]
-        out[3 + 2 * i] = sf * (ca * q[FX] - sa * q[FY])
-        out[4 + 2 * i] = sf * (sa * q[FX] + ca * q[FY])
-        out[9 + i] = EI[i] / L * q[ML] / (F_ref * L_ref)
+        out[3 + 2 * i] = sf * (ca * q[i, FX] - sa * q[i, FY])
+        out[4 + 2 * i] = sf * (sa * q[i, FX] + ca * q[i, FY])
+        out[9 + i] = EI[i] / L * q[i, ML] / (F_ref * L_ref)
 
 
 @njit(cache=True)
@@ -84,8 +84,8 @@ def continue_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_re
     work = np.empty((p, p + 1))
     y = np.empty(nu)
     yt = np.empty(nu)
-    q = np.empty(NQ)
-    g = np.empty((NQ, 3))
+    q = np.empty((3, NQ))
+    g = np.empty((3, NQ, 3))
     ph0 = np.empty(15)
     php = np.empty(15)
     phy = np.empty(15)

@@ -80,8 +80,8 @@ def newton_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref,
     d = np.empty(p)
     work = np.empty((p, p + 1))
     xt = np.empty(nu)
-    q = np.empty(NQ)
-    g = np.empty((NQ, 3))
+    q = np.empty((3, NQ))
+    g = np.empty((3, NQ, 3))
     for k in range(n):
         if not active[k]:
             continue

@@ -32,6 +32,7 @@ from ..rod.atlas_tree import get_atlas_tree
 from ..system import System
 from .corrector import newton
 from .finish import finish_solutions
+from .fk_search import fk_starts
 from .ik import RESIDUAL_TOL, as_load
 
 __all__ = ["fk"]
@@ -289,14 +290,10 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     if msg:
         return KinematicsResult((), True, msg, time.perf_counter() - t0, FKDiagnostics(), "fk", mech, given, wl,
                                 max_mode)
-    x0, complete = fk_candidates(system, u, w, max_mode, stride=stride, deadline=deadline)
-    diag["candidates"] = int(len(x0))
+    X, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=deadline)
+    diag["candidates"] = int(len(X))
     diag["search_complete"] = complete
-    lay = system.layout
-    X = np.zeros((len(x0), lay.n_unknowns))
-    X[:, :lay.n_rod] = x0[:, :6]
-    X[:, lay.pose] = x0[:, 6:]
-    X[:, lay.inputs] = u
+    diag["nodes"] = int(nodes)
     sols = refine_fk(system, mech, X, system.default_charts(len(X)), w, max_mode, diag)
     msg = "" if sols else "no equilibrium pose found for these inputs and load"
     if diag.get("continuum"):

@@ -1,0 +1,253 @@
+"""Bounding-box trees over the rods' atlases, for the branch-and-bound searches.
+
+Every node covers a block of atlas cells and stores the bounds, over that block, of six
+quantities of the unit rod in its clamp frame: tip position ``(x, y)``, tip force
+``(fx, fy)``, tip angle and tip moment (:mod:`flexkin.rod.slots`).  Leaves are small blocks of
+cells; their boxes are padded by a fraction of their extent because the closed form varies
+between grid nodes.  Each node also carries the chart coordinates of its centre and its half
+extent in the chart, for the leaf test of the searches.
+
+Two trees exist: over the pinned rods' atlas (:mod:`flexkin.rod.atlas`, chart ``(v, phis)``)
+and over the clamped rods' wrench atlas (:mod:`flexkin.rod.wrench_atlas`, chart
+``(a, b, m0)``, periodic in the force direction).  Both are cached on disk.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.cache import cached_arrays
+from .atlas import get_atlas
+from .slots import CHART_UNIFIED, CHART_WRENCH, NQ
+
+__all__ = ["CellTree", "pinned_tree", "clamped_tree"]
+
+#: relative padding of a leaf's bounds
+PAD = 0.1
+
+
+@dataclass(frozen=True)
+class CellTree:
+    """A binary tree of atlas blocks (arrays indexed by node; the root is node 0).
+
+    Attributes
+    ----------
+    chart : int
+        The rods' chart.
+    lo, hi : (n, 6) bounds of (x, y, fx, fy, theta, m_L) of the unit rod over each node.
+    child : (n, 2) child nodes (-1 for leaves).
+    zc : (n, 3) chart coordinates of the node's centre.
+    zh : (n, 3) half extent of the node in chart coordinates.
+    q, g : (n, NQ), (n, NQ, 3) the unit rod at the node's centre and its chart gradient
+        (evaluated once: a search tests each leaf against many others).
+    """
+
+    chart: int
+    lo: NDArray[np.float64]
+    hi: NDArray[np.float64]
+    child: NDArray[np.int64]
+    zc: NDArray[np.float64]
+    zh: NDArray[np.float64]
+    q: NDArray[np.float64]
+    g: NDArray[np.float64]
+
+
+def _centre_rods(chart: int, zc: NDArray) -> dict[str, NDArray]:
+    from .kernels import eval_rods
+
+    q = np.empty((len(zc), NQ))
+    g = np.empty((len(zc), NQ, 3))
+    eval_rods(np.full(len(zc), chart, dtype=np.int64), np.ascontiguousarray(zc), q, g)
+    return {"q": q, "g": g}
+
+
+def _build(blo: NDArray, bhi: NDArray, bzc: NDArray, bzh: NDArray, keep: NDArray,
+           weights: NDArray | None = None) -> dict[str, NDArray]:
+    """A tree over blocks given by their bounds (nb0, nb1, nb2, 6), centres and half extents
+    (nb0, nb1, nb2, 3); blocks with ``keep`` False are left out.
+
+    Without ``weights`` a node is split in the middle of its longest index range; with
+    ``weights`` (6,) along the index dimension whose halves have the smallest weighted box
+    extents (a k-d split in the space of the bounded quantities, so that the boxes the searches
+    test shrink fastest)."""
+    nb = blo.shape[:3]
+    lo_l, hi_l, ch_l, zc_l, zh_l = [], [], [], [], []
+
+    def node(box) -> int:
+        (i0, i1), (j0, j1), (k0, k1) = box
+        sel = keep[i0:i1, j0:j1, k0:k1]
+        if not sel.any():
+            return -1
+        idx = len(lo_l)
+        lo_l.append(None)
+        hi_l.append(None)
+        ch_l.append((-1, -1))
+        zc_l.append(None)
+        zh_l.append(None)
+        sizes = [i1 - i0, j1 - j0, k1 - k0]
+        if max(sizes) == 1:
+            lo_l[idx], hi_l[idx] = blo[i0, j0, k0], bhi[i0, j0, k0]
+            zc_l[idx], zh_l[idx] = bzc[i0, j0, k0], bzh[i0, j0, k0]
+            return idx
+        if weights is None:
+            d = int(np.argmax(sizes))
+        else:
+            best = np.inf
+            d = 0
+            for dd in range(3):
+                if sizes[dd] < 2:
+                    continue
+                m = [(i0 + i1) // 2, (j0 + j1) // 2, (k0 + k1) // 2][dd]
+                cost = 0.0
+                for half in ((box[dd][0], m), (m, box[dd][1])):
+                    sub = [list(b) for b in box]
+                    sub[dd] = list(half)
+                    sel = keep[sub[0][0]:sub[0][1], sub[1][0]:sub[1][1], sub[2][0]:sub[2][1]]
+                    if not sel.any():
+                        continue
+                    lo_ = blo[sub[0][0]:sub[0][1], sub[1][0]:sub[1][1], sub[2][0]:sub[2][1]][sel].min(0)
+                    hi_ = bhi[sub[0][0]:sub[0][1], sub[1][0]:sub[1][1], sub[2][0]:sub[2][1]][sel].max(0)
+                    cost = max(cost, float(np.max((hi_ - lo_) * weights)))
+                if cost < best:
+                    best, d = cost, dd
+        mid = [(i0 + i1) // 2, (j0 + j1) // 2, (k0 + k1) // 2][d]
+        left, right = [list(b) for b in box], [list(b) for b in box]
+        left[d][1] = mid
+        right[d][0] = mid
+        a, b = node(left), node(right)
+        kids = [c for c in (a, b) if c >= 0]
+        if len(kids) == 1:  # a single child: this node is that child's box
+            c = kids[0]
+            lo_l[idx], hi_l[idx], zc_l[idx], zh_l[idx], ch_l[idx] = lo_l[c], hi_l[c], zc_l[c], zh_l[c], ch_l[c]
+            return idx
+        ch_l[idx] = (a, b)
+        lo_l[idx] = np.minimum(lo_l[a], lo_l[b])
+        hi_l[idx] = np.maximum(hi_l[a], hi_l[b])
+        zlo = np.minimum(zc_l[a] - zh_l[a], zc_l[b] - zh_l[b])
+        zhi = np.maximum(zc_l[a] + zh_l[a], zc_l[b] + zh_l[b])
+        zc_l[idx], zh_l[idx] = 0.5 * (zlo + zhi), 0.5 * (zhi - zlo)
+        return idx
+
+    old = sys.getrecursionlimit()
+    sys.setrecursionlimit(max(old, 20000))
+    try:
+        node(((0, nb[0]), (0, nb[1]), (0, nb[2])))
+    finally:
+        sys.setrecursionlimit(old)
+    return {"lo": np.array(lo_l), "hi": np.array(hi_l), "child": np.array(ch_l, dtype=np.int64),
+            "zc": np.array(zc_l), "zh": np.array(zh_l)}
+
+
+def _pad(lo: NDArray, hi: NDArray) -> tuple[NDArray, NDArray]:
+    ext = (hi - lo) * PAD + 1e-9
+    return lo - ext, hi + ext
+
+
+@lru_cache(maxsize=4)
+def pinned_tree(max_mode: int, stride: int = 4) -> CellTree:
+    """Tree over the pinned rods' atlas with leaves of ``stride`` x ``stride`` cells."""
+    def build():
+        A = get_atlas(max_mode)
+        feats = np.stack([A.x, A.y, A.R * np.cos(A.psi), A.R * np.sin(A.psi), A.theta, np.zeros_like(A.x)], -1)
+        nv, nph = A.x.shape
+        ii = np.arange(0, nv - 1, stride)
+        jj = np.arange(0, nph - 1, stride)
+        blo = np.empty((len(ii), len(jj), 1, 6))
+        bhi = np.empty_like(blo)
+        bzc = np.zeros((len(ii), len(jj), 1, 3))
+        bzh = np.zeros_like(bzc)
+        for a, i in enumerate(ii):
+            i1 = min(i + stride, nv - 1)
+            for b, j in enumerate(jj):
+                j1 = min(j + stride, nph - 1)
+                block = feats[i:i1 + 1, j:j1 + 1].reshape(-1, 6)
+                blo[a, b, 0], bhi[a, b, 0] = _pad(block.min(0), block.max(0))
+                bzc[a, b, 0, :2] = 0.5 * (A.v[i] + A.v[i1]), 0.5 * (A.phis[j] + A.phis[j1])
+                bzh[a, b, 0, :2] = 0.5 * abs(A.v[i1] - A.v[i]), 0.5 * abs(A.phis[j1] - A.phis[j])
+        return _build(blo, bhi, bzc, bzh, np.ones(blo.shape[:3], bool))
+
+    def build_all():
+        t = build()
+        t.update(_centre_rods(CHART_UNIFIED, t["zc"]))
+        return t
+
+    t = cached_arrays("pinned-tree", (max_mode, stride, PAD, "q"), build_all)
+    return CellTree(CHART_UNIFIED, t["lo"], t["hi"], t["child"], t["zc"], t["zh"], t["q"], t["g"])
+
+
+def _block_grid(F: NDArray, valid: NDArray, stride: int, periodic_j: bool = False):
+    """Block bounds, wrench centres/extents and ``keep`` flags of a 3-D atlas ``F``
+    (n0, n1, n2, FEATURES) in blocks of ``stride``^3 cells."""
+    n0, n1, n2 = F.shape[:3]
+    ii = np.arange(0, n0 - 1, stride)
+    jj = np.arange(0, n1 - 1, stride)
+    kk = np.arange(0, n2 - 1, stride)
+    shape = (len(ii), len(jj), len(kk))
+    blo = np.zeros(shape + (6,))
+    bhi = np.zeros(shape + (6,))
+    bzc = np.zeros(shape + (3,))
+    bzh = np.zeros(shape + (3,))
+    keep = np.zeros(shape, bool)
+    for a, i in enumerate(ii):
+        i1 = min(i + stride, n0 - 1)
+        for b, j in enumerate(jj):
+            j1 = min(j + stride, n1 - 1)
+            for c, k in enumerate(kk):
+                k1 = min(k + stride, n2 - 1)
+                sub = F[i:i1 + 1, j:j1 + 1, k:k1 + 1].reshape(-1, F.shape[-1])
+                ok = valid[i:i1 + 1, j:j1 + 1, k:k1 + 1].reshape(-1)
+                if not ok.any() or not np.all(np.isfinite(sub[:, :9])):
+                    continue
+                keep[a, b, c] = True
+                blo[a, b, c], bhi[a, b, c] = _pad(sub[:, :6].min(0), sub[:, :6].max(0))
+                w = sub[:, 6:9]
+                ctr = F[(i + i1) // 2, (j + j1) // 2, (k + k1) // 2, 6:9]
+                bzc[a, b, c] = ctr
+                bzh[a, b, c] = np.max(np.abs(w - ctr), axis=0)
+    return blo, bhi, bzc, bzh, keep
+
+
+def _merge(t1: dict[str, NDArray], t2: dict[str, NDArray]) -> dict[str, NDArray]:
+    """Two trees under one new root."""
+    n1 = len(t1["lo"])
+    child2 = np.where(t2["child"] >= 0, t2["child"] + n1 + 1, -1)
+    child1 = np.where(t1["child"] >= 0, t1["child"] + 1, -1)
+    zlo = np.minimum(t1["zc"][0] - t1["zh"][0], t2["zc"][0] - t2["zh"][0])
+    zhi = np.maximum(t1["zc"][0] + t1["zh"][0], t2["zc"][0] + t2["zh"][0])
+    return {"lo": np.concatenate([np.minimum(t1["lo"][:1], t2["lo"][:1]), t1["lo"], t2["lo"]]),
+            "hi": np.concatenate([np.maximum(t1["hi"][:1], t2["hi"][:1]), t1["hi"], t2["hi"]]),
+            "child": np.concatenate([[[1, n1 + 1]], child1, child2]).astype(np.int64),
+            "zc": np.concatenate([[0.5 * (zlo + zhi)], t1["zc"], t2["zc"]]),
+            "zh": np.concatenate([[0.5 * (zhi - zlo)], t1["zh"], t2["zh"]])}
+
+
+@lru_cache(maxsize=4)
+def clamped_tree(max_mode: int, stride: int = 2) -> CellTree:
+    """Tree over the clamped rods, sampled in the libration and rotation charts of
+    :mod:`flexkin.rod.free_atlas` (well conditioned near the separatrix), with leaves of
+    ``stride``^3 cells; the nodes' chart coordinates are base wrenches (the wrench chart)."""
+    from .free_atlas import FEATURES, fill_libration, fill_rotation, libration_grid, rotation_grid
+    from .wrench_atlas import lambda_max, turning_max
+
+    def build():
+        weights = np.array([1.0, 1.0, 0.0, 0.0, 1.0 / np.pi, 0.0])
+        trees = []
+        for grid, fill in ((libration_grid, fill_libration), (rotation_grid, fill_rotation)):
+            a, b, c = grid(max_mode)
+            F = np.empty((len(a), len(b), len(c), FEATURES))
+            fill(a, b, c, F)
+            valid = ((F[..., 9] <= lambda_max(max_mode)) & (F[..., 10] <= max_mode)
+                     & (np.abs(F[..., 4]) <= turning_max(max_mode) + 1e-9) & np.all(np.isfinite(F), axis=-1))
+            blo, bhi, bzc, bzh, keep = _block_grid(F, valid, stride)
+            trees.append(_build(blo, bhi, bzc, bzh, keep, weights=weights))
+        t = _merge(*trees)
+        t.update(_centre_rods(CHART_WRENCH, t["zc"]))
+        return t
+
+    t = cached_arrays("clamped-tree", (max_mode, stride, PAD, "elliptic", "q"), build)
+    return CellTree(CHART_WRENCH, t["lo"], t["hi"], t["child"], t["zc"], t["zh"], t["q"], t["g"])

@@ -1,0 +1,415 @@
+"""The forward kinematics' global search: a compiled branch-and-bound over the rods' atlases.
+
+With the inputs fixed every clamp is known.  Each leg's rod is a point of its atlas (a
+:class:`~flexkin.rod.cell_tree.CellTree`: the pinned rods' ``(v, phis)`` atlas, or the clamped
+rods' wrench atlas); a triple of tree nodes, one per leg, survives only if interval arithmetic
+on its boxes, mapped to the world by each leg's clamp, admits
+
+* the platform's three side lengths ``|B_i - B_j| = d_ij`` and its signed area (which rejects
+  the mirror-image platform; paper Eq. 17);
+* the force balance ``sum n_i = F`` and the moment balance about ``B_1``
+  ``sum (B_i - B_1) x n_i + sum m_i(L) = M_z + (P - B_1) x F`` (Eq. 15, SPEC §2 sign; the last
+  term bounded by ``|b_1| |F|``);
+* for clamped legs, one platform orientation: every clamped tip's angle gives an interval of
+  ``theta_P``, these must meet, and the directions of the tip-to-tip vectors must agree with it.
+
+The largest node of a surviving triple is split (depth first, resumable: the stack is kept
+between calls so a time budget can interrupt it) until all three are leaves or resolved in
+physical terms; then one exact Newton step on the whole equation system (:mod:`flexkin.system`)
+from the nodes' centres, with the pose fitted to the three tips, decides: the triple is kept as
+a start when the step stays within the nodes (a solution inside a node has a step of at most
+its half extent).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.jit import njit
+from ..core.linalg import solve_into
+from ..rod.cell_tree import clamped_tree, pinned_tree
+from ..rod.slots import NQ
+from ..system import System, assemble
+
+__all__ = ["fk_starts"]
+
+TWO_PI = 2.0 * math.pi
+
+
+@njit
+def _imul(alo, ahi, blo, bhi):
+    p1, p2, p3, p4 = alo * blo, alo * bhi, ahi * blo, ahi * bhi
+    return min(p1, p2, p3, p4), max(p1, p2, p3, p4)
+
+
+@njit
+def _icross(ax, axh, ay, ayh, bx, bxh, by, byh):
+    """Interval of ``a x b`` for boxes given by centre and half-width."""
+    l1, h1 = _imul(ax - axh, ax + axh, by - byh, by + byh)
+    l2, h2 = _imul(ay - ayh, ay + ayh, bx - bxh, bx + bxh)
+    return l1 - h2, h1 - l2
+
+
+@njit
+def _dist_ok(dx, dy, hx, hy, d, tol) -> bool:
+    nx = max(abs(dx) - hx, 0.0)
+    ny = max(abs(dy) - hy, 0.0)
+    near = math.sqrt(nx * nx + ny * ny)
+    fx, fy = abs(dx) + hx, abs(dy) + hy
+    far = math.sqrt(fx * fx + fy * fy)
+    return near <= d + tol and far >= d - tol
+
+
+@njit
+def _meet(alo, ahi, blo, bhi) -> bool:
+    """Whether the angle intervals ``[alo, ahi]`` and ``[blo, bhi]`` meet modulo 2 pi."""
+    if ahi - alo >= TWO_PI or bhi - blo >= TWO_PI:
+        return True
+    shift = TWO_PI * math.floor((0.5 * (alo + ahi) - 0.5 * (blo + bhi)) / TWO_PI + 0.5)
+    b0, b1 = blo + shift, bhi + shift
+    return (alo <= b1 + 1e-12 and b0 <= ahi + 1e-12) or (alo <= b1 + TWO_PI and b0 + TWO_PI <= ahi) or \
+        (alo <= b1 - TWO_PI and b0 - TWO_PI <= ahi)
+
+
+@njit
+def _dir_interval(cx, cy, hx, hy):
+    """Interval of the direction of the vectors of a box (centre, half-width); ``ok`` False when
+    the box contains the origin (any direction)."""
+    if abs(cx) <= hx and abs(cy) <= hy:
+        return 0.0, 0.0, False
+    c = math.atan2(cy, cx)
+    lo, hi = 1e300, -1e300
+    for sx in (-1.0, 1.0):
+        for sy in (-1.0, 1.0):
+            a = math.atan2(cy + sy * hy, cx + sx * hx)
+            a = c + (math.pi - ((math.pi - (a - c)) % TWO_PI))
+            lo = min(lo, a)
+            hi = max(hi, a)
+    return lo, hi, True
+
+
+@njit
+def _rot_box(bx, by, lo, hi):
+    """Bounds ``(xlo, xhi, ylo, yhi)`` of ``Rot(theta) b`` over ``theta`` in ``[lo, hi]``."""
+    r = math.hypot(bx, by)
+    if hi - lo >= TWO_PI:
+        return -r, r, -r, r
+    phi = math.atan2(by, bx)
+    # x = r cos(theta + phi), y = r sin(theta + phi): extremes at the ends or at multiples of pi/2
+    a0, a1 = lo + phi, hi + phi
+    xl = min(math.cos(a0), math.cos(a1))
+    xh = max(math.cos(a0), math.cos(a1))
+    yl = min(math.sin(a0), math.sin(a1))
+    yh = max(math.sin(a0), math.sin(a1))
+    k = math.ceil(a0 / (0.5 * math.pi))
+    while k * 0.5 * math.pi <= a1:
+        m = k % 4
+        if m == 0:
+            xh = 1.0
+        elif m == 1:
+            yh = 1.0
+        elif m == 2:
+            xl = -1.0
+        else:
+            yl = -1.0
+        k += 1
+    return r * xl, r * xh, r * yl, r * yh
+
+
+@njit
+def _fit_pose(tx, ty, b, out) -> None:
+    """Least-squares rigid pose placing the attach points ``b`` (3, 2) on the tips."""
+    bx = (b[0, 0] + b[1, 0] + b[2, 0]) / 3.0
+    by = (b[0, 1] + b[1, 1] + b[2, 1]) / 3.0
+    px = (tx[0] + tx[1] + tx[2]) / 3.0
+    py = (ty[0] + ty[1] + ty[2]) / 3.0
+    s = 0.0
+    c = 0.0
+    for i in range(3):
+        ux, uy = b[i, 0] - bx, b[i, 1] - by
+        vx, vy = tx[i] - px, ty[i] - py
+        s += ux * vy - uy * vx
+        c += ux * vx + uy * vy
+    th = math.atan2(s, c)
+    ct, st = math.cos(th), math.sin(th)
+    out[0] = px - (ct * bx - st * by)
+    out[1] = py - (st * bx + ct * by)
+    out[2] = th
+
+
+@njit
+def bnb_kernel(lo, hi, child, zc, zh, nq, ng, roots, charts, A, al, L, EI, clamped, beta, b, w, L_ref, F_ref,
+               eps_tip, eps_force, eps_ang, reach,
+               c0, c1, EIs, attach, joint, tip_angle, rod_col, tip_row, cols, u,
+               stack, n_stack, budget, starts, n_starts):
+    """Process node triples from ``stack[:n_stack]`` until it empties, ``budget`` triples were
+    examined or ``starts`` is full; returns ``(n_stack, n_starts, examined)``."""
+    b01x, b01y = b[1, 0] - b[0, 0], b[1, 1] - b[0, 1]
+    b02x, b02y = b[2, 0] - b[0, 0], b[2, 1] - b[0, 1]
+    d01 = math.hypot(b01x, b01y)
+    d02 = math.hypot(b02x, b02y)
+    d12 = math.hypot(b[2, 0] - b[1, 0], b[2, 1] - b[1, 1])
+    area = b01x * b02y - b01y * b02x
+    ang01 = math.atan2(b01y, b01x)
+    ang02 = math.atan2(b02y, b02x)
+    ang12 = math.atan2(b[2, 1] - b[1, 1], b[2, 0] - b[1, 0])
+    tol = 1e-9 * L_ref
+    mslack = math.hypot(b[0, 0], b[0, 1]) * math.hypot(w[0], w[1])
+    ct = np.empty((3, 2))
+    th_ = np.empty((3, 2))
+    cf = np.empty((3, 2))
+    hf = np.empty((3, 2))
+    tlo = np.empty(3)
+    thi = np.empty(3)
+    mlo = np.empty(3)
+    mhi = np.empty(3)
+    size = np.empty(3)
+    nodes = np.empty(3, np.int64)
+    nu = rod_col[2] + (3 if clamped[2] else 2) + 6  # rod coordinates, pose, inputs
+    x = np.empty(nu)
+    r = np.empty(nu - 3)
+    J = np.empty((nu - 3, nu))
+    q = np.empty((3, NQ))
+    g = np.empty((3, NQ, 3))
+    p = cols.shape[0]
+    M = np.empty((p, p))
+    rhs = np.empty(p)
+    dx = np.empty(p)
+    work = np.empty((p, p + 1))
+    tipx = np.empty(3)
+    tipy = np.empty(3)
+    pose = np.empty(3)
+    examined = 0
+    while n_stack > 0 and examined < budget and n_starts < starts.shape[0]:
+        n_stack -= 1
+        nodes[0], nodes[1], nodes[2] = stack[n_stack, 0], stack[n_stack, 1], stack[n_stack, 2]
+        examined += 1
+        for i in range(3):
+            nd = nodes[i]
+            ca, sa = math.cos(al[i]), math.sin(al[i])
+            xc, yc = 0.5 * (lo[nd, 0] + hi[nd, 0]), 0.5 * (lo[nd, 1] + hi[nd, 1])
+            xh, yh = 0.5 * (hi[nd, 0] - lo[nd, 0]), 0.5 * (hi[nd, 1] - lo[nd, 1])
+            ct[i, 0] = A[i, 0] + L[i] * (ca * xc - sa * yc)
+            ct[i, 1] = A[i, 1] + L[i] * (sa * xc + ca * yc)
+            th_[i, 0] = L[i] * (abs(ca) * xh + abs(sa) * yh)
+            th_[i, 1] = L[i] * (abs(sa) * xh + abs(ca) * yh)
+            s = EI[i] / (L[i] * L[i])
+            fxc, fyc = 0.5 * (lo[nd, 2] + hi[nd, 2]), 0.5 * (lo[nd, 3] + hi[nd, 3])
+            fxh, fyh = 0.5 * (hi[nd, 2] - lo[nd, 2]), 0.5 * (hi[nd, 3] - lo[nd, 3])
+            cf[i, 0] = s * (ca * fxc - sa * fyc)
+            cf[i, 1] = s * (sa * fxc + ca * fyc)
+            hf[i, 0] = s * (abs(ca) * fxh + abs(sa) * fyh)
+            hf[i, 1] = s * (abs(sa) * fxh + abs(ca) * fyh)
+            tlo[i] = al[i] + lo[nd, 4] - beta[i]
+            thi[i] = al[i] + hi[nd, 4] - beta[i]
+            sm = EI[i] / L[i]
+            mlo[i] = sm * lo[nd, 5]
+            mhi[i] = sm * hi[nd, 5]
+            fmag = math.hypot(cf[i, 0], cf[i, 1])
+            sz = max(th_[i, 0], th_[i, 1]) / (eps_tip * L_ref)
+            sz = max(sz, max(hf[i, 0], hf[i, 1]) / (eps_force * (F_ref + fmag)))
+            if clamped[i]:
+                sz = max(sz, 0.5 * (thi[i] - tlo[i]) / eps_ang)
+                sz = max(sz, 0.5 * (mhi[i] - mlo[i]) / (eps_force * (F_ref * L_ref + abs(0.5 * (mlo[i] + mhi[i])))))
+            size[i] = -1.0 if (child[nd, 0] < 0 or sz < 1.0) else sz
+        # ---- interval tests ------------------------------------------------------------
+        if not _dist_ok(ct[1, 0] - ct[0, 0], ct[1, 1] - ct[0, 1], th_[0, 0] + th_[1, 0], th_[0, 1] + th_[1, 1], d01, tol):
+            continue
+        if not _dist_ok(ct[2, 0] - ct[0, 0], ct[2, 1] - ct[0, 1], th_[0, 0] + th_[2, 0], th_[0, 1] + th_[2, 1], d02, tol):
+            continue
+        if not _dist_ok(ct[2, 0] - ct[1, 0], ct[2, 1] - ct[1, 1], th_[1, 0] + th_[2, 0], th_[1, 1] + th_[2, 1], d12, tol):
+            continue
+        alo, ahi = _icross(ct[1, 0] - ct[0, 0], th_[0, 0] + th_[1, 0], ct[1, 1] - ct[0, 1], th_[0, 1] + th_[1, 1],
+                           ct[2, 0] - ct[0, 0], th_[0, 0] + th_[2, 0], ct[2, 1] - ct[0, 1], th_[0, 1] + th_[2, 1])
+        if not (alo <= area + tol * tol and ahi >= area - tol * tol):
+            continue
+        sfx = cf[0, 0] + cf[1, 0] + cf[2, 0]
+        sfy = cf[0, 1] + cf[1, 1] + cf[2, 1]
+        hfx = hf[0, 0] + hf[1, 0] + hf[2, 0]
+        hfy = hf[0, 1] + hf[1, 1] + hf[2, 1]
+        if abs(sfx - w[0]) > hfx + 1e-12 * F_ref or abs(sfy - w[1]) > hfy + 1e-12 * F_ref:
+            continue
+        m1 = _icross(ct[1, 0] - ct[0, 0], th_[0, 0] + th_[1, 0], ct[1, 1] - ct[0, 1], th_[0, 1] + th_[1, 1],
+                     cf[1, 0], hf[1, 0], cf[1, 1], hf[1, 1])
+        m2 = _icross(ct[2, 0] - ct[0, 0], th_[0, 0] + th_[2, 0], ct[2, 1] - ct[0, 1], th_[0, 1] + th_[2, 1],
+                     cf[2, 0], hf[2, 0], cf[2, 1], hf[2, 1])
+        mtl = m1[0] + m2[0] + mlo[0] + mlo[1] + mlo[2]
+        mth = m1[1] + m2[1] + mhi[0] + mhi[1] + mhi[2]
+        slack = mslack + 1e-12 * F_ref * L_ref
+        if mtl > w[2] + slack or mth < w[2] - slack:
+            continue
+        ok = True
+        have = False
+        plo, phi = 0.0, 0.0
+        for i in range(3):
+            if clamped[i]:
+                if not have:
+                    plo, phi, have = tlo[i], thi[i], True
+                elif not _meet(plo, phi, tlo[i], thi[i]):
+                    ok = False
+                    break
+        if not ok:
+            continue
+        if have and phi - plo < math.pi:
+            # the clamped tips' angles give theta_P; intersect them (modulo 2 pi)
+            for i in range(3):
+                if clamped[i]:
+                    shift = TWO_PI * math.floor((0.5 * (plo + phi) - 0.5 * (tlo[i] + thi[i])) / TWO_PI + 0.5)
+                    plo = max(plo, tlo[i] + shift)
+                    phi = min(phi, thi[i] + shift)
+            if plo > phi + 1e-12:
+                continue
+            # each clamped tip then bounds P = B_i - Rot(theta_P) b_i: intersect those boxes ...
+            pxl, pxh, pyl, pyh = -1e300, 1e300, -1e300, 1e300
+            for i in range(3):
+                if clamped[i]:
+                    rxl, rxh, ryl, ryh = _rot_box(b[i, 0], b[i, 1], plo, phi)
+                    pxl = max(pxl, ct[i, 0] - th_[i, 0] - rxh)
+                    pxh = min(pxh, ct[i, 0] + th_[i, 0] - rxl)
+                    pyl = max(pyl, ct[i, 1] - th_[i, 1] - ryh)
+                    pyh = min(pyh, ct[i, 1] + th_[i, 1] - ryl)
+            if pxl > pxh + tol or pyl > pyh + tol:
+                continue
+            # ... and every tip box must meet its attach point's box P + Rot(theta_P) b_j
+            for j in range(3):
+                rxl, rxh, ryl, ryh = _rot_box(b[j, 0], b[j, 1], plo, phi)
+                if ct[j, 0] + th_[j, 0] < pxl + rxl - tol or ct[j, 0] - th_[j, 0] > pxh + rxh + tol or \
+                        ct[j, 1] + th_[j, 1] < pyl + ryl - tol or ct[j, 1] - th_[j, 1] > pyh + ryh + tol:
+                    ok = False
+                    break
+            if not ok:
+                continue
+            for (i, j, off) in ((0, 1, ang01), (0, 2, ang02), (1, 2, ang12)):
+                dlo, dhi, dok = _dir_interval(ct[j, 0] - ct[i, 0], ct[j, 1] - ct[i, 1], th_[i, 0] + th_[j, 0],
+                                              th_[i, 1] + th_[j, 1])
+                if dok and not _meet(dlo - off, dhi - off, plo, phi):
+                    ok = False
+                    break
+            if not ok:
+                continue
+        # ---- split, or test the terminal triple ------------------------------------------
+        k = 0
+        if size[1] > size[k]:
+            k = 1
+        if size[2] > size[k]:
+            k = 2
+        if size[k] > 0.0:
+            if n_stack + 2 > stack.shape[0]:
+                n_stack += 1  # put it back: the stack is full
+                stack[n_stack - 1, 0], stack[n_stack - 1, 1], stack[n_stack - 1, 2] = nodes[0], nodes[1], nodes[2]
+                break
+            for side in range(2):
+                stack[n_stack, 0], stack[n_stack, 1], stack[n_stack, 2] = nodes[0], nodes[1], nodes[2]
+                stack[n_stack, k] = child[nodes[k], side]
+                n_stack += 1
+            continue
+        # one exact Newton step from the centres, pose fitted to the three tips
+        for i in range(3):
+            dim = 3 if clamped[i] else 2
+            for c in range(dim):
+                x[rod_col[i] + c] = zc[nodes[i], c]
+            tipx[i], tipy[i] = ct[i, 0], ct[i, 1]
+        _fit_pose(tipx, tipy, b, pose)
+        ip = nu - 6
+        x[ip], x[ip + 1], x[ip + 2] = pose[0], pose[1], pose[2]
+        x[nu - 3], x[nu - 2], x[nu - 1] = u[0], u[1], u[2]
+        for i in range(3):  # the rods at the nodes' centres, evaluated once per node
+            q[i, :] = nq[nodes[i]]
+            g[i, :, :] = ng[nodes[i]]
+        assemble(c0, c1, EIs, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_ref, x, charts, w, r, J, True,
+                 q, g)
+        for a in range(p):
+            rhs[a] = -r[a]
+            for c in range(p):
+                M[a, c] = J[a, cols[c]]
+        solve_into(M, rhs, dx, work)
+        keep = True
+        for i in range(3):
+            dim = 3 if clamped[i] else 2
+            for c in range(dim):
+                v = dx[rod_col[i] + c]
+                if not abs(v) <= (1.0 + reach) * zh[nodes[i], c] + 1e-12:
+                    keep = False
+        if keep:
+            for c in range(nu):
+                starts[n_starts, c] = x[c]
+            for c in range(p):
+                starts[n_starts, cols[c]] += dx[c]
+            n_starts += 1
+    return n_stack, n_starts, examined
+
+
+def _trees(mech, max_mode: int, stride: int):
+    """The legs' trees concatenated (arrays, root node and chart per leg)."""
+    kinds = []
+    for leg in mech.legs:
+        kinds.append("clamped" if leg.platform_joint.carries_moment else "pinned")
+    order = sorted(set(kinds))
+    trees = {k: (clamped_tree(max_mode) if k == "clamped" else pinned_tree(max_mode, stride)) for k in order}
+    offs, arrs, off = {}, [], 0
+    for k in order:
+        offs[k] = off
+        arrs.append(trees[k])
+        off += len(trees[k].lo)
+    cat = lambda name: np.ascontiguousarray(np.concatenate([getattr(t, name) for t in arrs]))  # noqa: E731
+    child = np.concatenate([np.where(t.child >= 0, t.child + offs[k], -1) for k, t in zip(order, arrs)])
+    roots = np.array([offs[k] for k in kinds], dtype=np.int64)
+    charts = np.array([trees[k].chart for k in kinds], dtype=np.int64)
+    return cat("lo"), cat("hi"), np.ascontiguousarray(child), cat("zc"), cat("zh"), cat("q"), cat("g"), roots, charts
+
+
+def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: int, *, stride: int = 4,
+              eps_tip: float = 0.01, eps_force: float = 0.05, eps_ang: float = 0.05, reach: float = 1.0,
+              max_nodes: int = 50_000_000, deadline: float | None = None, fallback: int = 20_000
+              ) -> tuple[NDArray[np.float64], bool, int]:
+    """Starting points (n, n_unknowns) for the FK Newton, whether the search completed, and the
+    number of node triples examined.  When the budget runs out, the centres of up to
+    ``fallback`` unresolved triples (a deterministic subsample) are returned as well."""
+    lo, hi, child, zc, zh, nq, ng, roots, charts = _trees(mech, max_mode, stride)
+    u = np.asarray(inputs, dtype=float)
+    A, al, L = system.clamps(u[None])
+    A, al, L = np.ascontiguousarray(A[0]), np.ascontiguousarray(al[0]), np.ascontiguousarray(L[0])
+    clamped = system.clamped.copy()
+    beta = np.asarray(system.tip_angle, dtype=float)
+    cols = system.layout.columns("inputs")
+    stack = np.empty((200_000, 3), np.int64)
+    stack[0] = roots
+    n_stack = 1
+    starts = np.empty((200_000, system.layout.n_unknowns))
+    n_starts = 0
+    examined = 0
+    w = np.asarray(load, dtype=float)
+    while n_stack > 0 and examined < max_nodes:
+        if deadline is not None and time.perf_counter() > deadline:
+            break
+        n_stack, n_starts, ex = bnb_kernel(lo, hi, child, zc, zh, nq, ng, roots, charts, A, al, L, system.EI,
+                                           clamped, beta,
+                                           system.attach, w, system.L_ref, system.F_ref, eps_tip, eps_force, eps_ang,
+                                           reach, *system.args()[:8], cols, u, stack, n_stack, 200_000, starts,
+                                           n_starts)
+        examined += ex
+        if n_starts >= len(starts):
+            starts = np.concatenate([starts, np.empty_like(starts)])
+        if n_stack + 2 > len(stack):
+            stack = np.concatenate([stack, np.empty_like(stack)])
+    complete = n_stack == 0
+    out = [starts[:n_starts]]
+    if not complete:  # unresolved triples: their centres, fitted pose
+        rest = stack[:n_stack]
+        if len(rest) > fallback:
+            rest = rest[np.random.default_rng(0).choice(len(rest), fallback, replace=False)]
+        X = np.zeros((len(rest), system.layout.n_unknowns))
+        for i in range(3):
+            sl = system.layout.rod[i]
+            X[:, sl] = zc[rest[:, i], :sl.stop - sl.start]
+        X[:, system.layout.inputs] = u
+        tips = system.rod_world(X, np.broadcast_to(charts, (len(X), 3)))["tip"]
+        from ..core.geometry2d import fit_pose
+
+        X[:, system.layout.pose] = fit_pose(system.attach, tips)
+        out.append(X)
+    return np.concatenate(out), complete, examined
