@@ -22,6 +22,7 @@ from ..results import Solution
 from ..rod.atlas import in_scope
 from ..rod.closed_form import mode_of, standard_chart
 from ..rod.kernels import CHART_WRENCH, TH
+from ..rod.slots import X as X_, Y as Y_
 from ..rod.wrench import wrench_mode
 from ..rod.wrench_atlas import in_wrench_scope
 from ..rod.state import RodState
@@ -93,39 +94,66 @@ def _in_scope(system: System, X: NDArray, charts: NDArray, modes: NDArray, max_m
     return ok
 
 
+#: a rod whose unit tip lies within this of (1, 0) is straight over its whole length (an
+#: inextensible rod reaches its full length only when straight)
+STRAIGHT_TOL = 1e-9
+
+
 def distinct(system: System, X: NDArray, charts: NDArray, residual: NDArray,
              diag: dict[str, Any] | None = None) -> NDArray[np.int64]:
     """Indices of one candidate per equilibrium (the smallest residual of each).
 
-    Two candidates are the same equilibrium when their rods' tip forces and base moments,
-    the pose and the inputs agree to 1e-6 (scaled).  A continuum -- the same geometry (pose,
-    inputs, rod tip angles) carrying different forces -- happens only where straight rods take
-    axial force freely (a singular configuration); one representative, the least loaded, is kept.
+    Two candidates are one equilibrium only when their whole rod shapes agree: the pose, the
+    inputs and every rod's tip force and base moment (which fix the shape by the closed form)
+    agree to 1e-6 (scaled).  Equal end tangents are *not* enough -- the first and the second
+    buckled shape of a pinned-pinned rod have equal inputs and tangents and forces 1 : 4.
+
+    The one exception is a continuum: a rod that is straight over its whole length carries any
+    axial force in the same configuration (a singular configuration).  Candidates that differ
+    only in the axial forces of rods straight in both are merged; the least loaded is kept and
+    ``diag["continuum"]`` counts the merged family.
     """
     if len(X) == 0:
         return np.zeros(0, np.int64)
     lay = system.layout
     w = system.rod_world(X, charts)
+    q, _ = system.unit_rods(X, charts)
     sx = np.array([system.L_ref, system.L_ref, 1.0])
     su = system.input_scale()
-    keys = np.concatenate([w["force"].reshape(-1, 6) / system.F_ref,
-                           w["base_moment"] / (system.F_ref * system.L_ref),
-                           X[:, lay.pose] / sx, X[:, lay.inputs] / su], axis=1)
+    geo = np.concatenate([X[:, lay.pose] / sx, X[:, lay.inputs] / su], axis=1)
+    rod = np.concatenate([w["force"] / system.F_ref,
+                          w["base_moment"][..., None] / (system.F_ref * system.L_ref)], axis=2)  # (n, 3, 3)
+    straight = (np.abs(q[..., X_] - 1.0) < STRAIGHT_TOL) & (np.abs(q[..., Y_]) < STRAIGHT_TOL)
     order = np.argsort(residual, kind="stable")
     chosen: list[int] = []
     for i in order:
-        if not chosen or np.min(np.max(np.abs(keys[chosen] - keys[i]), axis=1)) > 1e-6:
+        if not chosen:
             chosen.append(int(i))
-    geo = np.concatenate([X[:, lay.pose] / sx, X[:, lay.inputs] / su,
-                          np.cos(w["tip_angle"]), np.sin(w["tip_angle"])], axis=1)[chosen]
-    fmag = np.sum(np.abs(w["force"].reshape(-1, 6)), axis=1)[chosen]
+            continue
+        c = np.array(chosen)
+        same_geo = np.max(np.abs(geo[c] - geo[i]), axis=1) <= 1e-6
+        rod_differs = np.max(np.abs(rod[c] - rod[i]), axis=2) > 1e-6          # (m, 3)
+        same = same_geo & ~np.any(rod_differs, axis=1)
+        if np.any(same):
+            continue
+        chosen.append(int(i))
+    # continuum: same geometry, forces differing only on rods straight in both
+    fmag = np.sum(np.abs(w["force"].reshape(-1, 6)), axis=1)
     keep: list[int] = []
-    for a in np.argsort(fmag, kind="stable"):
-        if not keep or np.min(np.max(np.abs(geo[keep] - geo[a]), axis=1)) > 1e-8:
-            keep.append(int(a))
+    for a in sorted(chosen, key=lambda k: fmag[k]):
+        merged = False
+        for b in keep:
+            if np.max(np.abs(geo[a] - geo[b])) > 1e-8:
+                continue
+            differs = np.max(np.abs(rod[a] - rod[b]), axis=1) > 1e-6
+            if np.all(~differs | (straight[a] & straight[b])):
+                merged = True
+                break
+        if not merged:
+            keep.append(a)
     if diag is not None and len(keep) < len(chosen):
         diag["continuum"] = len(chosen) - len(keep) + 1
-    return np.array(sorted(chosen[a] for a in keep), dtype=np.int64)
+    return np.array(sorted(keep), dtype=np.int64)
 
 
 def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual: NDArray, max_mode: int,
