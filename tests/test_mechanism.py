@@ -649,3 +649,172 @@ def test_plot_into_given_axes_and_bad_rods():
         plot_mechanism(m, rods=[np.zeros((3, 2))] * 2)
     with pytest.raises(ValueError):
         plot_mechanism(m, rods=[np.zeros((3, 3))] * 3)
+
+
+# ---------------------------------------------------------------------------------------
+# plausibility warnings (issue 18, defect 5) and the Cosserat keys (issue 16)
+# ---------------------------------------------------------------------------------------
+REVOLUTE_BASE = """\
+name = "spring-steel 3-RFR"
+
+[rod]
+length = 0.6
+E = 200e9
+radius = 1.0e-3
+
+[platform]
+attach = [[-0.05, -0.03], [0.05, -0.03], [0.0, 0.06]]
+
+[[leg]]
+actuation = "revolute"
+origin = [-0.433, -0.25]
+range = [-60.0, 120.0]
+
+[[leg]]
+actuation = "revolute"
+origin = [0.433, -0.25]
+range = [60.0, 240.0]
+
+[[leg]]
+actuation = "revolute"
+origin = [0.0, 0.5]
+range = [180.0, 360.0]
+"""
+
+
+def _warnings_of(path) -> list[str]:
+    import warnings
+
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        load_mechanism(path)
+    return [str(w.message) for w in rec if issubclass(w.category, FlexkinWarning)]
+
+
+def test_plausible_files_load_without_warnings(tmp_path):
+    assert _warnings_of(_write(tmp_path, REVOLUTE_BASE)) == []
+    for stem in EXAMPLE_FILES:
+        assert _warnings_of(EXAMPLES / f"{stem}.toml") == [], stem
+
+
+@pytest.mark.parametrize("old, new, needles", [
+    ("radius = 1.0e-3", "radius = 1.0", ["rod.radius", "radius = 1 m", "rod length 0.6 m", "slender"]),
+    ("E = 200e9", "E = 200", ["rod.E", "E = 200 Pa", "far below", "GPa"]),
+    ("range = [-60.0, 120.0]", "range = [-1.05, 2.09]", ["leg[1].range", "[-1.05, 2.09]", "radians", "degrees",
+                                                         "[-60.16, 119.7]"]),
+    ('origin = [0.433, -0.25]\n', 'origin = [0.433, -0.25]\nangle = 30.0\n', ["leg[2].angle", "no effect",
+                                                                              "revolute"]),
+])
+def test_implausible_values_warn_naming_key_value_and_expectation(tmp_path, old, new, needles):
+    path = _write(tmp_path, _sub(old, new, REVOLUTE_BASE))
+    msgs = _warnings_of(path)
+    assert len(msgs) == 1, msgs
+    assert msgs[0].startswith(f"{path}: ")
+    for needle in needles:
+        assert needle in msgs[0], (needle, msgs[0])
+
+
+def test_per_leg_radius_warns_with_the_leg_key(tmp_path):
+    text = _sub('origin = [0.0, 0.5]\n', 'origin = [0.0, 0.5]\nradius = 0.05\n', REVOLUTE_BASE)
+    msgs = _warnings_of(_write(tmp_path, text))
+    assert len(msgs) == 1 and "leg[3].radius" in msgs[0] and "0.05 m" in msgs[0]
+
+
+def test_impossible_values_stay_errors(tmp_path):
+    with pytest.raises(MechanismError, match=r"rod\.radius"):
+        load_mechanism(_write(tmp_path, _sub("radius = 1.0e-3", "radius = -1.0", REVOLUTE_BASE)))
+
+
+def test_revolute_inputs_in_radians_are_recognised():
+    from flexkin.mechanism.plausibility import revolute_inputs_look_like_radians
+
+    m = load_mechanism(EXAMPLES / "unit_3rfr.toml")  # ranges [-60, 120], [60, 240], [180, 360]
+    note = revolute_inputs_look_like_radians(m, [1.58, 2.62, 4.71])
+    assert note is not None and "--inputs" in note and "radians" in note and "90.53" in note
+    assert revolute_inputs_look_like_radians(m, [90.0, 150.0, 270.0]) is None   # degrees, in range
+    assert revolute_inputs_look_like_radians(m, [0.0, 0.0, 0.0]) is None
+    proto = load_mechanism(PROTOTYPE)  # no revolute leg
+    assert revolute_inputs_look_like_radians(proto, [0.025, 0.025, 0.025]) is None
+
+
+COSSERAT_KEYS = """
+[rod]
+length = 1.0
+E = 200e9
+radius = 1.0e-3
+poisson = 0.3
+density = 7850
+"""
+
+
+def test_cosserat_keys_validated_and_resolved_per_leg(tmp_path):
+    from flexkin.io.material import cosserat_setup, leg_materials
+
+    text = _sub("[rod]\nlength = 1.0\nE = 68e9\nradius = 1.5e-3\n", COSSERAT_KEYS.lstrip("\n"))
+    text = _sub("angle = 120.0", "angle = 120.0\nG = 7e10\nshear_coefficient = 0.8\ndensity = 6450", text)
+    text += "\n[environment]\ngravity = [0.0, -9.81]\n"
+    m = load_mechanism(_write(tmp_path, text))
+    mats = leg_materials(m)
+    assert mats[0] == {"poisson": 0.3, "density": 7850.0}
+    # leg 2 gives G: the inherited poisson is dropped; its own density and shear coefficient win
+    assert mats[1] == {"G": 7e10, "density": 6450.0, "shear_coefficient": 0.8}
+    assert m.gravity == (0.0, -9.81)
+    assert m.legs[1].rod.G == 7e10 and m.legs[0].rod.poisson == 0.3
+    params, g = cosserat_setup(m)
+    A = math.pi * 1e-6
+    assert params[0].EA == pytest.approx(200e9 * A)
+    assert params[0].GA == pytest.approx(200e9 / 2.6 * A)
+    assert params[0].mass_per_length == pytest.approx(7850 * A)
+    assert params[1].GA == pytest.approx(7e10 * A) and params[1].shear_coefficient == 0.8
+    assert g == (0.0, -9.81)
+    assert cosserat_setup(m, gravity=(9.81, 0.0))[1] == (9.81, 0.0)
+
+
+@pytest.mark.parametrize("extra, needles", [
+    ("poisson = 0.7", ["rod.poisson", "(-1, 0.5]"]),
+    ("density = -1.0", ["rod.density", ">= 0"]),
+    ("G = 0.0", ["rod.G", "> 0"]),
+    ("poisson = 0.3\nG = 1e9", ["rod.G", "disagrees", "E / (2 (1 + poisson))"]),
+    ("shear_coefficient = -0.5", ["rod.shear_coefficient"]),
+    ("densty = 7850", ["rod.densty", "did you mean 'density'?"]),
+])
+def test_bad_cosserat_keys_are_one_line_errors(tmp_path, extra, needles):
+    path = _write(tmp_path, _sub("radius = 1.5e-3", f"radius = 1.5e-3\n{extra}"))
+    with pytest.raises(MechanismError) as info:
+        load_mechanism(path)
+    msg = str(info.value)
+    assert msg.startswith(f"{path}: ") and "\n" not in msg
+    for needle in needles:
+        assert needle in msg, (needle, msg)
+
+
+def test_environment_gravity_checked(tmp_path):
+    with pytest.raises(MechanismError, match=r"environment\.gravity"):
+        load_mechanism(_write(tmp_path, BASE + "\n[environment]\ngravity = [0.0]\n"))
+    with pytest.raises(MechanismError, match=r"environment\.wind.*allowed keys here: gravity"):
+        load_mechanism(_write(tmp_path, BASE + "\n[environment]\nwind = [0.0, 1.0]\n"))
+
+
+def test_every_file_key_is_documented_in_the_repository():
+    import re
+
+    from flexkin.mechanism import loader
+
+    root = Path(__file__).resolve().parents[1]
+    doc = (root / "docs" / "mechanism_file.md").read_text(encoding="utf-8")
+    keys = set(loader._TOP_KEYS + loader._ROD_KEYS + loader.MATERIAL_KEYS + loader._LEG_KEYS + loader._LOAD_KEYS
+               + loader._LIMITS_KEYS + loader._ENVIRONMENT_KEYS + loader._PLATFORM_KEYS)
+    for key in sorted(keys):
+        assert re.search(rf"`(\[\[?)?{re.escape(key)}(\]\]?)?`", doc), key
+    for word in ("unit", "default", "override", "range", "limits", "load", "tip_angle", "joint", "dimensionless"):
+        assert word in doc, word
+    # the README points to the file that documents the format, and the file is in the repository
+    readme = (root / "README.md").read_text(encoding="utf-8")
+    assert "docs/mechanism_file.md" in readme
+    # the documented example parses (with its one [[leg]] repeated on the prototype's guides)
+    block = doc.split("```toml\n", 1)[1].split("```", 1)[0]
+    data = tomllib.loads(block)
+    leg = data["leg"][0]
+    data["leg"] = [leg, dict(leg, origin=[0.784, -0.458], angle=120.0), dict(leg, origin=[0.005, 0.908], angle=240.0)]
+    m = mechanism_from_dict(data, source="<doc>")
+    assert m.name == "3-PFR prototype" and m.legs[0].rod.radius == 1.5e-3

@@ -15,8 +15,19 @@ that overrides ``E`` or ``radius`` (but not ``EI``) gets its ``EI`` recomputed f
 instead of inheriting ``[rod].EI``.  ``length`` is required for prismatic and revolute legs
 and ignored for length legs.  ``[limits] max_strain`` requires every leg's ``radius``.
 
+Material keys beyond bending (``G`` or ``poisson``, ``density``, ``shear_coefficient``; used
+by the Cosserat refinement) and ``[environment] gravity`` are validated here and resolved per
+leg by :func:`resolve_material` (a leg's own value wins; a leg giving ``G`` or ``poisson``
+drops the other one inherited from ``[rod]``), and stored on each leg's
+:class:`~flexkin.mechanism.model.Rod` and on :attr:`Mechanism.gravity`.
+
 Angles (``angle``, and ``range`` of revolute legs) are degrees in the file and radians in
 the returned :class:`~flexkin.mechanism.model.Mechanism`.
+
+Physically implausible values (a rod radius comparable to its length, ``E = 200`` Pa, a
+revolute range in radians, ``angle`` on a revolute leg, ...) are accepted with a
+:class:`~flexkin.errors.FlexkinWarning` naming the file, the key, the value and what is
+expected (:mod:`flexkin.mechanism.plausibility`).  Full reference: ``docs/mechanism_file.md``.
 
 Unknown keys are errors in every table (never silently ignored), with a ``did you mean``
 hint for likely misspellings (:func:`suggest_key`).
@@ -36,6 +47,7 @@ MechanismErrors too.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import os
@@ -46,6 +58,7 @@ from typing import Any
 
 from flexkin.errors import FlexkinWarning, MechanismError
 from flexkin.mechanism.joints import JOINTS
+from flexkin.mechanism.plausibility import check_mechanism_data
 from flexkin.mechanism.model import (
     ACTUATIONS,
     LENGTH_LIMITS,
@@ -57,11 +70,17 @@ from flexkin.mechanism.model import (
     circular_EI,
 )
 
-__all__ = ["load_mechanism", "mechanism_from_dict"]
+__all__ = ["load_mechanism", "mechanism_from_dict", "resolve_material", "MATERIAL_KEYS"]
 
-_TOP_KEYS = ("name", "rod", "platform", "leg", "load", "limits")
+_TOP_KEYS = ("name", "rod", "platform", "leg", "load", "limits", "environment")
 _ROD_KEYS = ("length", "E", "radius", "EI")
-_LEG_KEYS = ("actuation", "origin", "angle", "range", "joint", "tip_angle") + _ROD_KEYS
+#: material keys beyond bending, used by the Cosserat refinement (issue 16); per-leg overrides
+#: work as for the other rod keys
+MATERIAL_KEYS = ("G", "poisson", "density", "shear_coefficient")
+_LEG_KEYS = ("actuation", "origin", "angle", "range", "joint", "tip_angle") + _ROD_KEYS + MATERIAL_KEYS
+_ENVIRONMENT_KEYS = ("gravity",)
+#: relative tolerance of the agreement of G with E / (2 (1 + poisson)) when all three are given
+_G_RTOL = 1e-6
 _PLATFORM_KEYS = ("attach",)
 _LOAD_KEYS = ("force", "moment")
 _LIMITS_KEYS = ("max_strain",)
@@ -227,6 +246,56 @@ def _rod_values(table: dict[str, Any], path: str) -> dict[str, float]:
     return out
 
 
+def _material_values(table: dict[str, Any], path: str) -> dict[str, float]:
+    """Validated material keys (Cosserat refinement) present in ``table``."""
+    out: dict[str, float] = {}
+    if "G" in table:
+        out["G"] = _positive(table["G"], f"{path}.G", "Pa", STIFFNESS_LIMITS)
+    if "poisson" in table:
+        nu = _number(table["poisson"], f"{path}.poisson")
+        if not -1.0 < nu <= 0.5:
+            raise _KeyProblem(f"{path}.poisson", f"Poisson's ratio must lie in (-1, 0.5], got {nu!r}")
+        out["poisson"] = nu
+    if "density" in table:
+        rho = _number(table["density"], f"{path}.density")
+        if rho < 0.0:
+            raise _KeyProblem(f"{path}.density", f"must be >= 0 (kg/m^3), got {rho!r}")
+        out["density"] = rho
+    if "shear_coefficient" in table:
+        out["shear_coefficient"] = _positive(table["shear_coefficient"], f"{path}.shear_coefficient",
+                                             "dimensionless", (1e-6, 10.0))
+    return out
+
+
+def resolve_material(defaults: dict[str, float], overrides: dict[str, float], E: float | None,
+                     path: str) -> dict[str, float]:
+    """A leg's material keys (``G``, ``poisson``, ``density``, ``shear_coefficient``): the leg's
+    own values over the ``[rod]`` defaults.  A leg giving ``G`` or ``poisson`` drops the other
+    one inherited from ``[rod]``; ``G`` and ``poisson`` given together must agree with ``E``
+    (``G = E / (2 (1 + poisson))`` to 1e-6).  Raises ``_KeyProblem`` (loader-internal)."""
+    merged = dict(defaults)
+    if {"G", "poisson"} & overrides.keys():
+        merged.pop("G", None)
+        merged.pop("poisson", None)
+    merged.update(overrides)
+    if "G" in merged and "poisson" in merged and E is not None:
+        G_c = E / (2.0 * (1.0 + merged["poisson"]))
+        if abs(merged["G"] - G_c) > _G_RTOL * max(merged["G"], G_c):
+            where = path if ({"G", "poisson"} & overrides.keys()) else "rod"
+            raise _KeyProblem(f"{where}.G", f"G = {merged['G']:.6g} Pa disagrees with E / (2 (1 + poisson)) = "
+                              f"{G_c:.6g} Pa (E = {E:g} Pa, poisson = {merged['poisson']:g}); give either G or "
+                              "poisson, or make them agree")
+    return merged
+
+
+def _environment(value: Any) -> tuple[float, float] | None:
+    table = _table(value, "environment")
+    _check_keys(table, _ENVIRONMENT_KEYS, "environment")
+    if "gravity" not in table:
+        return None
+    return _pair(table["gravity"], "environment.gravity", "[gx, gy] in m/s^2")
+
+
 def _resolve_rod(
     defaults: dict[str, float], overrides: dict[str, float], actuation: str, path: str
 ) -> Rod:
@@ -277,7 +346,7 @@ def _resolve_rod(
     return Rod(length=length, EI=EI, radius=radius, E=E)
 
 
-def _leg(table: Any, i: int, rod_defaults: dict[str, float]) -> Leg:
+def _leg(table: Any, i: int, rod_defaults: dict[str, float], material_defaults: dict[str, float] | None = None) -> Leg:
     path = f"leg[{i + 1}]"
     table = _table(table, path)
     _check_keys(table, _LEG_KEYS, path)
@@ -312,6 +381,9 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float]) -> Leg:
             )
         rng = (math.radians(lo), math.radians(hi)) if act == "revolute" else (lo, hi)
     rod = _resolve_rod(rod_defaults, _rod_values(table, path), act, path)
+    material = resolve_material(material_defaults or {}, _material_values(table, path), rod.E, path)
+    if material:
+        rod = dataclasses.replace(rod, **material)
     joint = table.get("joint", "pinned")
     if not isinstance(joint, str):
         raise _KeyProblem(f"{path}.joint", f"expected a string, got {_type_name(joint)} {_show(joint)}")
@@ -355,17 +427,19 @@ def _load(value: Any) -> tuple[float, float, float]:
     return (fx, fy, mz)
 
 
-def _mechanism(data: Any, default_name: str, source: str | None) -> Mechanism:
+def _mechanism(data: Any, default_name: str, source: str | None, warn_prefix: str = "") -> Mechanism:
     data = _table(data, "")
     _check_keys(data, _TOP_KEYS, "")
     name = data.get("name", default_name)
     if not isinstance(name, str):
         raise _KeyProblem("name", f"expected a string, got {_type_name(name)} {_show(name)}")
     rod_defaults: dict[str, float] = {}
+    material_defaults: dict[str, float] = {}
     if "rod" in data:
         rod_table = _table(data["rod"], "rod")
-        _check_keys(rod_table, _ROD_KEYS, "rod")
+        _check_keys(rod_table, _ROD_KEYS + MATERIAL_KEYS, "rod")
         rod_defaults = _rod_values(rod_table, "rod")
+        material_defaults = _material_values(rod_table, "rod")
     platform = _platform(_require(data, "platform", "", "a [platform] table with 'attach'"))
     legs_raw = _require(data, "leg", "", "three [[leg]] tables")
     if isinstance(legs_raw, dict):
@@ -374,8 +448,9 @@ def _mechanism(data: Any, default_name: str, source: str | None) -> Mechanism:
         raise _KeyProblem("leg", f"expected three [[leg]] tables, got {_type_name(legs_raw)} {_show(legs_raw)}")
     if len(legs_raw) != 3:
         raise _KeyProblem("leg", f"expected exactly three [[leg]] tables, got {len(legs_raw)}")
-    legs = tuple(_leg(t, i, rod_defaults) for i, t in enumerate(legs_raw))
+    legs = tuple(_leg(t, i, rod_defaults, material_defaults) for i, t in enumerate(legs_raw))
     load = _load(data["load"]) if "load" in data else (0.0, 0.0, 0.0)
+    gravity = _environment(data["environment"]) if "environment" in data else None
     max_strain = None
     if "limits" in data:
         limits = _table(data["limits"], "limits")
@@ -389,11 +464,18 @@ def _mechanism(data: Any, default_name: str, source: str | None) -> Mechanism:
                         "missing: limits.max_strain needs the rod radius of every leg (in [rod] or in the [[leg]])",
                     )
     try:
-        return Mechanism(
-            name=name, legs=legs, platform=platform, load=load, max_strain=max_strain, source=source
+        mech = Mechanism(
+            name=name, legs=legs, platform=platform, load=load, max_strain=max_strain, source=source, gravity=gravity
         )  # type: ignore[arg-type]
     except MechanismError as exc:  # coincident leg origins etc.; message already has the key path
         raise _KeyProblem("", str(exc)) from None
+    try:
+        notes = check_mechanism_data(data, mech)
+    except Exception:  # pragma: no cover - a plausibility check never stops a valid file
+        notes = []
+    for note in notes:
+        warnings.warn(f"{warn_prefix}{note}", FlexkinWarning, stacklevel=4)
+    return mech
 
 
 def _default_name(source: str) -> str:
@@ -425,7 +507,8 @@ def mechanism_from_dict(data: dict[str, Any], source: str = "<dict>") -> Mechani
     """
     src = str(source)
     try:
-        return _mechanism(data, _default_name(src), None if src.startswith("<") else src)
+        return _mechanism(data, _default_name(src), None if src.startswith("<") else src,
+                          "" if src.startswith("<") else f"{src}: ")
     except _KeyProblem as exc:
         raise MechanismError(f"{src}: {exc}") from None
     except MechanismError as exc:

@@ -155,12 +155,24 @@ class Rod:
         Radius of the circular cross-section (m); needed only for strain checks.
     E : float, optional
         Young's modulus (Pa); informative only (``EI`` is what the mechanics use).
+    G : float, optional
+        Shear modulus (Pa), for the Cosserat refinement (:mod:`flexkin.cosserat`).
+    poisson : float, optional
+        Poisson's ratio, in (-1, 0.5]; gives ``G = E / (2 (1 + poisson))`` when ``G`` is absent.
+    density : float, optional
+        Mass density (kg/m^3), for the rods' self-weight in the Cosserat refinement.
+    shear_coefficient : float, optional
+        Timoshenko shear coefficient of the section (default: the circular section's).
     """
 
     length: float | None
     EI: float
     radius: float | None = None
     E: float | None = None
+    G: float | None = None
+    poisson: float | None = None
+    density: float | None = None
+    shear_coefficient: float | None = None
 
     def __post_init__(self) -> None:
         if self.length is not None:
@@ -466,6 +478,9 @@ class Mechanism:
         Allowable bending strain for feasibility checks.
     source : str, optional
         Path of the file the mechanism was loaded from.
+    gravity : tuple of float, optional
+        In-plane gravity ``(gx, gy)`` (m/s^2) of the file's ``[environment]``; used only by the
+        Cosserat refinement (the Kirchhoff rods are weightless).
     """
 
     name: str
@@ -474,6 +489,7 @@ class Mechanism:
     load: tuple[float, float, float] = (0.0, 0.0, 0.0)
     max_strain: float | None = None
     source: str | None = field(default=None, compare=False)
+    gravity: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
