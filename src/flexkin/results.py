@@ -11,6 +11,7 @@ arguments.  Units inside are SI and radians; ``to_dict`` converts angles to degr
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Iterator
 
@@ -18,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 if TYPE_CHECKING:
+    from .analysis.indices import Indices
     from .rod.state import RodState
 
 __all__ = ["Stability", "Jacobians", "Solution", "Result", "KinematicsResult", "IKDiagnostics",
@@ -169,6 +171,14 @@ class Solution:
         """d-modes as a string, e.g. ``"112"``."""
         return "".join(str(q) for q in self.modes)
 
+    @functools.cached_property
+    def indices(self) -> "Indices":
+        """Performance indices (output stiffness and compliance, velocity ellipse, condition
+        number, peak strain; :mod:`flexkin.analysis.indices`), computed once, on demand."""
+        from .analysis.indices import performance_indices
+
+        return performance_indices([self])[0]
+
     def inputs_display(self) -> list[float]:
         """Inputs in display units (m, or degrees for revolute legs)."""
         return [float(leg.to_display(u)) for u, leg in zip(self.inputs, self.mechanism.legs)]
@@ -194,6 +204,7 @@ class Solution:
             "energy": self.energy,
             "rods": [r.to_dict() for r in self.rods],
             "jacobian": None if self.jacobian is None else self.jacobian.to_dict(),
+            "indices": self.indices.to_dict(),
         })
         return d
 
