@@ -96,3 +96,42 @@ def test_cli_path_json(examples_dir, tmp_path):
     bad = subprocess.run([sys.executable, "-m", "flexkin.cli", "path", str(examples_dir / "unit_3pfr.toml"),
                           "--from", "0", "0", "--to", "0.2", "0", "20"], capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
+
+
+# ---- issue 18, defect 3: a stop reason follows from computed quantities ----------------------
+def _rfr():
+    from pathlib import Path
+
+    return flexkin.load_mechanism(Path(__file__).resolve().parents[1] / "examples" / "unit_3rfr.toml")
+
+
+def test_a_fold_is_called_an_ik_singularity_and_the_branch_really_ends_there():
+    mech = _rfr()
+    a, b = np.array([0.0, 0.0, TH]), np.array([0.3, 0.1, TH])
+    r = follow_path(mech, a, b, steps=30)
+    assert not r.complete and r.message.startswith("continuation stopped: IK singularity")
+    t_end = float(r.t[-1])
+    assert t_end < 1.0
+    # independent: the full IK just beyond the stop has no solution continuing the branch
+    u_last = r.inputs[-1]
+    beyond = flexkin.ik(mech, (1 - (t_end + 0.03)) * a + (t_end + 0.03) * b)
+    near = [s for s in beyond.solutions
+            if np.max(np.abs(np.remainder(np.asarray(s.inputs) - u_last + np.pi, 2 * np.pi) - np.pi)) < 0.05]
+    assert near == []
+
+
+def test_a_corrector_failure_away_from_singularities_is_not_called_one(monkeypatch):
+    import flexkin.solve.path as path_mod
+
+    real = path_mod.continue_ik
+
+    def failing_beyond_x(system, x, ch, pose, w):  # a corrector that gives up half-way: no fold there
+        x1, c1, ok = real(system, x, ch, pose, w)
+        return x1, c1, ok & (pose[:, 0] <= 0.15)
+
+    monkeypatch.setattr(path_mod, "continue_ik", failing_beyond_x)
+    r = follow_path(_rfr(), (0.0, 0.0, TH), (0.3, 0.1, TH), steps=30)
+    assert not r.complete and r.t[-1] == pytest.approx(0.5)
+    assert "corrector failed to converge at step size h =" in r.message
+    assert "IK singularity" not in r.message and "no singularity detected" in r.message
+    assert r.events[-1].kind == "continuation_failed"

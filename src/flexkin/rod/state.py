@@ -9,13 +9,23 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.geometry2d import rot2, rotate
-from .closed_form import mode_of, standard_chart, to_paper
+from .closed_form import SEAM_OFFSET, is_seam, mode_of, standard_chart, to_paper
 from .kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, EN, FX, FY, M0, ML, NQ, TH, X, Y, eval_rods, profile
 
 __all__ = ["RodState", "rot"]
 
 #: kept for callers of the former helper; the one rotation is :func:`flexkin.core.geometry2d.rot2`
 rot = rot2
+
+
+def _unified(chart: int, z0: float, z1: float) -> tuple[float, float]:
+    """The solvers' chart ``(v, phis)`` of a pinned rod stored in ``chart``: pairs in the seam
+    chart are converted whether raw (``(psi_s, chi)``, the continuation's unknowns) or
+    offset-encoded (:func:`~flexkin.rod.closed_form.standard_chart`)."""
+    if chart == CHART_SEAM and not bool(is_seam(z1)):
+        z1 = z1 + SEAM_OFFSET
+    v, ph = standard_chart(z0, z1)
+    return float(v), float(ph)
 
 
 @dataclass(frozen=True)
@@ -85,7 +95,7 @@ class RodState:
         else:
             k = float(np.copysign(np.inf, m0)) if m0 != 0 else 0.0
         if chart == CHART_UNIFIED or chart == CHART_SEAM:
-            v, ph = (float(a) for a in standard_chart(coords[0], coords[1]))
+            v, ph = _unified(chart, coords[0], coords[1])
             k = float(to_paper(np.tanh(v), ph)[0])
         return cls(mode=int(mode), k=k, psi=psi, length=float(length), EI=float(EI),
                    clamp=(float(c[0]), float(c[1])), clamp_angle=float(clamp_angle),
@@ -113,14 +123,14 @@ class RodState:
         """Solvers' chart variable ``v`` (``ku = tanh v``) of a pinned rod (NaN otherwise)."""
         if self.chart == CHART_WRENCH:
             return float("nan")
-        return float(standard_chart(self.coords[0], self.coords[1])[0])
+        return _unified(self.chart, self.coords[0], self.coords[1])[0]
 
     @property
     def phis(self) -> float:
         """Unified clamp amplitude of a pinned rod (NaN otherwise)."""
         if self.chart == CHART_WRENCH:
             return float("nan")
-        return float(standard_chart(self.coords[0], self.coords[1])[1])
+        return _unified(self.chart, self.coords[0], self.coords[1])[1]
 
     @property
     def ku(self) -> float:
@@ -141,7 +151,7 @@ class RodState:
         z = np.zeros(3)
         z[:len(self.coords)] = self.coords
         if self.chart == CHART_SEAM:
-            z[:2] = standard_chart(z[0], z[1])
+            z[:2] = _unified(CHART_SEAM, z[0], z[1])
             profile(CHART_UNIFIED, z, s, out)
         else:
             profile(self.chart, z, s, out)

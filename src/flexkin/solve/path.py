@@ -106,8 +106,36 @@ class PathResult(Result):
             out[:, i] = leg.to_display(out[:, i])
         return out
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict; non-finite numbers are ``None``."""
+    def sample_solutions(self) -> list[Solution]:
+        """One :class:`~flexkin.results.Solution` per reached sample (rods, stability,
+        Jacobians), in sample order, each carrying the id of the followed start solution;
+        rebuilt from the samples' unknowns ``x`` and charts ``charts``."""
+        import dataclasses
+
+        from .finish import build_solutions
+
+        if len(self.t) == 0:
+            return []
+        mech = self.mechanism
+        sols = build_solutions(System.from_mechanism(mech), mech, np.asarray(self.x), np.asarray(self.charts),
+                               np.asarray(self.load, dtype=float))
+        sid = 0 if self.start_solution is None else int(self.start_solution.id)
+        return [s if s.id == sid else dataclasses.replace(s, id=sid) for s in sols]
+
+    def to_dict(self, feasibility: bool = False, solutions: list[Solution] | None = None) -> dict[str, Any]:
+        """JSON-ready dict; non-finite numbers are ``None``.
+
+        Parameters
+        ----------
+        feasibility : bool
+            Add per sample the bending strain of each rod (``strains``; ``None`` without a
+            radius), the largest one (``max_strain``), the verdict of
+            :func:`~flexkin.analysis.feasibility.check_feasibility` (``feasibility``:
+            collisions, self-intersection, strain above ``[limits] max_strain``, inputs outside
+            a leg's ``range``) and ``feasible``; and ``feasible_samples`` at the top.
+        solutions : list of Solution, optional
+            The samples as solutions, if already built (:meth:`sample_solutions`).
+        """
         pts = []
         u = self.inputs_display()
         for j in range(len(self.t)):
@@ -118,12 +146,24 @@ class PathResult(Result):
                         "jacobian": {"det_ik": finite_or_none(self.det_ik[j]), "det_fk": finite_or_none(self.det_fk[j]),
                                      "cond": finite_or_none(self.cond[j]), "sing_ik": finite_or_none(self.sing_ik[j]),
                                      "sing_fk": finite_or_none(self.sing_fk[j])}})
-        return {"problem": "path", "mechanism": self.mechanism.name, "load": list(self.load),
-                "from": [self.start[0], self.start[1], float(np.degrees(self.start[2]))],
-                "to": [self.end[0], self.end[1], float(np.degrees(self.end[2]))],
-                "solution": None if self.start_solution is None else self.start_solution.id,
-                "complete": self.complete, "message": self.message,
-                "events": [e.to_dict() for e in self.events], "points": pts}
+        d = {"problem": "path", "mechanism": self.mechanism.name, "load": list(self.load),
+             "from": [self.start[0], self.start[1], float(np.degrees(self.start[2]))],
+             "to": [self.end[0], self.end[1], float(np.degrees(self.end[2]))],
+             "solution": None if self.start_solution is None else self.start_solution.id,
+             "complete": self.complete, "message": self.message,
+             "jacobian_units": f"dimensionless: lengths in L_ref = {self.mechanism.length_scale:.6g} m (the "
+                               "mechanism's length scale), angles in rad",
+             "events": [e.to_dict() for e in self.events], "points": pts}
+        if feasibility and pts:
+            from ..analysis.feasibility import check_feasibility
+
+            sols = self.sample_solutions() if solutions is None else solutions
+            for p, sol in zip(pts, sols):
+                f = check_feasibility(self.mechanism, sol)
+                p.update(feasible=f.feasible, max_strain=f.max_strain, strains=list(f.strains),
+                         feasibility=f.to_dict())
+            d["feasible_samples"] = sum(bool(p["feasible"]) for p in pts)
+        return d
 
     def table(self) -> str:
         """Human-readable table of the samples, then the events."""
