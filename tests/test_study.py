@@ -17,6 +17,7 @@ import pytest
 from flexkin.mechanism import mechanism_from_dict
 from flexkin.study import METRICS, StudyError, load_study, read_table, run_study
 from flexkin.study.cli import main as study_main
+from flexkin.study.evaluate import INDEX_SUMMARIES
 from flexkin.study.grid import apply_design, parse_key
 from test_study_support import EXAMPLES, TINY, free_port, reference_rows, strip, write_study
 
@@ -221,10 +222,14 @@ def test_synchronous_run_resume_and_table(tmp_path):
         assert r["complete"] and r["error"] == "" and r["elapsed_s"] > 0
         assert r["workspace_area"] > 0 and r["n_aspects"] == 1
         assert r["workspace_area"] == pytest.approx(r["singularity_free_area"])
-        assert r["cond_min"] <= r["cond_mean"] <= r["cond_max"]
         assert r["min_stability_margin"] > 0 and r["max_curvature"] > 0
         assert r["max_strain"] is None  # the unit mechanism has no rod radius
-        assert 1 <= r["strain_samples"] <= 2
+        for name in INDEX_SUMMARIES:  # every index summarised over the largest aspect
+            assert r[f"min_{name}"] <= r[f"mean_{name}"] <= r[f"max_{name}"], name
+        # the aspect is stable: the platform is stiff in every direction with the actuators locked
+        assert r["min_force_stiffness"] > 0 and r["min_moment_stiffness"] > 0 and r["min_cond"] >= 1
+        assert r["min_singularity_distance"] >= 0.05 - 1e-12  # half a step: boundary cells
+        assert [float(a) for a in r["aspect_areas"].split(";")] == pytest.approx([r["singularity_free_area"]])
     # a longer rod reaches further
     assert res.rows[2]["workspace_area"] > res.rows[0]["workspace_area"]
     # the files
@@ -273,7 +278,11 @@ def test_failing_design_is_a_row_with_its_error(tmp_path, capsys):
 
 
 def test_areas_scale_as_s_squared(tmp_path):
-    """Every length times s (rods, origins, attach points, grid step and bounds): areas x s^2."""
+    """Every length times s (rods, origins, attach points, grid step and bounds), EI and the
+    (zero) load unchanged: areas x s^2, lengths x s, curvature x 1/s; the stiffness against a
+    force (EI/L^3) x s^-3, against a moment (EI/L) x s^-1; the dimensionless indices (margin,
+    homogeneous condition number with L_c = the mean rod length, manipulability) unchanged; the
+    velocity ellipse (per unit homogenised input rate L_c/s) x s."""
     body = TINY.replace('"rod.length" = [1.0, 1.1]', '"scale" = [1.0, 2.0]').replace("[10, 20]", "[20]")
     res = run_study(write_study(tmp_path, body), tmp_path / "a", scheduler="synchronous", progress=False,
                     figures=False)
@@ -284,6 +293,12 @@ def test_areas_scale_as_s_squared(tmp_path):
     assert two["inscribed_radius"] == pytest.approx(2.0 * one["inscribed_radius"], rel=1e-9)
     assert two["max_curvature"] == pytest.approx(0.5 * one["max_curvature"], rel=1e-6)
     assert two["n_aspects"] == one["n_aspects"] and two["input_span_1"] == pytest.approx(one["input_span_1"])
+    law = {"stability_margin": 1.0, "cond": 1.0, "manipulability": 1.0, "force_stiffness": 2.0**-3,
+           "moment_stiffness": 0.5, "velocity_minor": 2.0, "singularity_distance": 2.0}
+    assert set(law) == set(INDEX_SUMMARIES)
+    for name, factor in law.items():
+        for stat in ("min", "mean", "max"):
+            assert two[f"{stat}_{name}"] == pytest.approx(factor * one[f"{stat}_{name}"], rel=1e-6), (stat, name)
     # the same through a mechanism file scaled by hand (no 'scale' key): s = 2
     data = tomllib.loads((EXAMPLES / "unit_3rfr.toml").read_text())
     pts = ", ".join(f"[{2 * x!r}, {2 * y!r}]" for x, y in data["platform"]["attach"])
@@ -300,11 +315,11 @@ def test_areas_scale_as_s_squared(tmp_path):
 
 def test_one_dimensional_figure_and_no_figures(tmp_path):
     body = TINY.replace("[10, 20]", "[20]")
-    body = body.replace('name = "tiny"', 'name = "tiny"\nmetrics = ["cond_max", "workspace_area"]')
+    body = body.replace('name = "tiny"', 'name = "tiny"\nmetrics = ["max_cond", "workspace_area", "aspect_areas"]')
     res = run_study(write_study(tmp_path, body), tmp_path / "o", scheduler="synchronous", progress=False)
-    assert [c for c, _ in res.columns][3:5] == ["workspace_area", "cond_max"]
-    assert len(res.columns) == 3 + 2 + 4
-    assert sorted(p.name for p in res.figures) == ["fig_cond_max.png", "fig_workspace_area.png"]
+    assert [c for c, _ in res.columns][3:6] == ["workspace_area", "aspect_areas", "max_cond"]
+    assert len(res.columns) == 3 + 3 + 4
+    assert sorted(p.name for p in res.figures) == ["fig_max_cond.png", "fig_workspace_area.png"]  # no list figure
 
 
 def _run_in_pty(args: list[str], timeout: float = 120.0) -> tuple[int, str]:

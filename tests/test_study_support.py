@@ -30,7 +30,6 @@ orientations = [10, 20]
 [workspace]
 step = 0.1
 all_aspects = false
-strain_samples = 2
 '''
 
 _REFERENCE: dict[str, list[dict]] = {}

@@ -24,53 +24,67 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
+from numpy.typing import NDArray
 
-__all__ = ["METRICS", "ROW_VERSION", "DesignTask", "evaluate_design", "Metric"]
+__all__ = ["METRICS", "ROW_VERSION", "DesignTask", "evaluate_design", "Metric", "INDEX_SUMMARIES"]
 
 #: Version of the row produced by :func:`evaluate_design`; part of every stored row's key.
-ROW_VERSION = 1
+ROW_VERSION = 2
 
 
 @dataclass(frozen=True)
 class Metric:
-    """A metric column: its type (``"float"``, ``"int"`` or ``"bool"``), unit and meaning."""
+    """A metric column: its type (``"float"``, ``"int"``, ``"bool"`` or ``"str"``), unit and meaning."""
 
     dtype: str
     unit: str
     doc: str
 
 
+#: Per-equilibrium indices summarised over the largest aspect by ``min_``, ``mean_`` and ``max_``
+#: columns: name -> (unit, meaning); see :mod:`flexkin.analysis.indices` for the formulas.
+INDEX_SUMMARIES: dict[str, tuple[str, str]] = {
+    "stability_margin": ("", "stability margin (smallest eigenvalue of the dimensionless second variation)"),
+    "cond": ("", "condition number of the homogenised J_IK (characteristic length: the mean rod length)"),
+    "force_stiffness": ("N/m", "stiffness against a force at P in its weakest direction, actuators locked, "
+                               "platform free to turn: 1/lambda_max(C[:2, :2])"),
+    "moment_stiffness": ("N m/rad", "stiffness against a moment, actuators locked, platform free to translate: "
+                                    "1/C[2, 2]"),
+    "manipulability": ("", "volume of the velocity ellipsoid, |det J_h|"),
+    "velocity_minor": ("m/s", "minor semi-axis of the velocity ellipse of P per unit homogenised input rate"),
+    "singularity_distance": ("m", "distance to the nearest IK/FK singularity found by the map (empty where a "
+                                  "closer one may lie beyond the grid or an unresolved cell)"),
+}
+_STAT = {"min": "smallest", "mean": "mean", "max": "largest"}
+
 #: Every metric column, in table order.  A study computes all of them unless it lists some.
 METRICS: dict[str, Metric] = {
     "workspace_area": Metric("float", "m^2", "area reached by any aspect (union of the aspects)"),
     "n_aspects": Metric("int", "", "number of aspects (regions mapped from distinct stable seed solutions)"),
-    "singularity_free_area": Metric("float", "m^2", "area of the largest aspect"),
+    "singularity_free_area": Metric("float", "m^2", "area of the largest aspect (singularity-free and stable, "
+                                                    "reached from the seed)"),
+    "aspect_areas": Metric("str", "m^2", "area of each aspect, largest first, separated by ';'"),
     "touches_bounds": Metric("bool", "", "a reached cell lies on the edge of the grid: the areas are cut by the bounds"),
     "inscribed_radius": Metric("float", "m", "distance from the seed to the nearest grid point the largest aspect "
                                              "does not reach"),
     "n_mode_combinations": Metric("int", "", "distinct d-mode combinations in the largest aspect"),
     "fk_boundary_fraction": Metric("float", "", "share of the largest aspect's boundary cells that border an FK "
                                                 "singularity or instability (the rest border IK singularities)"),
-    "min_stability_margin": Metric("float", "", "smallest stability margin in the largest aspect"),
-    "mean_stability_margin": Metric("float", "", "mean stability margin over the largest aspect"),
-    "cond_min": Metric("float", "", "smallest Jacobian condition number in the largest aspect"),
-    "cond_mean": Metric("float", "", "mean Jacobian condition number over the largest aspect"),
-    "cond_max": Metric("float", "", "largest Jacobian condition number in the largest aspect"),
+    **{f"{stat}_{name}": Metric("float", unit, f"{word} {doc} over the largest aspect")
+       for name, (unit, doc) in INDEX_SUMMARIES.items() for stat, word in _STAT.items()},
     "input_span_1": Metric("float", "m or deg", "range of actuator input 1 over the largest aspect"),
     "input_span_2": Metric("float", "m or deg", "range of actuator input 2 over the largest aspect"),
     "input_span_3": Metric("float", "m or deg", "range of actuator input 3 over the largest aspect"),
     "in_range_fraction": Metric("float", "", "share of the largest aspect's cells whose inputs lie within every "
                                              "leg's range, revolute angles modulo 360 deg (empty when no leg has "
                                              "a range)"),
-    "max_curvature": Metric("float", "1/m", "largest rod curvature at the sampled cells of the largest aspect"),
-    "max_strain": Metric("float", "", "largest bending strain radius*|curvature| at the sampled cells (empty "
+    "max_curvature": Metric("float", "1/m", "largest rod curvature over the largest aspect"),
+    "max_strain": Metric("float", "", "largest bending strain radius*|curvature| over the largest aspect (empty "
                                       "when no rod has a radius)"),
-    "strain_samples": Metric("int", "", "cells of the largest aspect where the strain was evaluated (its extreme "
-                                        "cells in [workspace] strain_samples directions)"),
 }
-_STRAIN_METRICS = ("max_curvature", "max_strain", "strain_samples")
-#: Seconds of global search for each IK of the strain sampling (see :func:`flexkin.ik`).
-IK_BUDGET = 1.0
+#: metrics computed from the per-cell indices (:func:`flexkin.analysis.indices.index_arrays`)
+_INDEX_METRICS = frozenset(f"{s}_{n}" for n in ("cond", "force_stiffness", "moment_stiffness", "manipulability",
+                                                 "velocity_minor") for s in _STAT) | {"max_curvature", "max_strain"}
 
 
 @dataclass(frozen=True)
@@ -106,6 +120,76 @@ def _one_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {msg}" if msg else type(e).__name__
 
 
+def _summary(out: dict[str, Any], name: str, values: NDArray[np.float64]) -> None:
+    """``min_``, ``mean_`` and ``max_`` of ``name`` over the finite ``values`` (None if none is)."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    for stat, f in (("min", np.min), ("mean", np.mean), ("max", np.max)):
+        out[f"{stat}_{name}"] = _f(f(v)) if v.size else None
+
+
+def _cell_states(mp: Any, ws: Any, system: Any) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """The unknowns (n, n_unknowns) and charts (n, 3) of the reached cells of map ``mp``, in
+    the order of ``np.nonzero(mp.reached)``."""
+    jj, ii = np.nonzero(mp.reached)
+    lay = system.layout
+    Xc = np.zeros((len(jj), lay.n_unknowns))
+    Xc[:, :lay.n_rod] = mp.zrod[jj, ii]
+    Xc[:, lay.pose] = np.stack([np.asarray(ws.x)[ii], np.asarray(ws.y)[jj], np.full(len(jj), ws.theta)], -1)
+    Xc[:, lay.inputs] = mp.inputs[jj, ii]
+    return Xc, np.asarray(mp.charts)[jj, ii]
+
+
+def _aspect_metrics(out: dict[str, Any], want: set[str], ws: Any, mech: Any) -> None:
+    """The metrics of the largest aspect ``ws.maps[0]`` (see :data:`METRICS`)."""
+    from ..analysis.indices import index_arrays, singularity_distance_map
+    from ..system import System
+
+    h = float(ws.step)
+    X, Y = np.asarray(ws.x, float), np.asarray(ws.y, float)
+    mp = ws.maps[0]
+    r = mp.reached
+    sj = int(np.argmin(np.abs(Y - ws.seed[1])))
+    si = int(np.argmin(np.abs(X - ws.seed[0])))
+    # inscribed radius: nearest grid point not reached, or the first point beyond the grid
+    gx, gy = np.meshgrid(X, Y)
+    d_out = np.hypot(gx[~r] - X[si], gy[~r] - Y[sj])
+    beyond = min(X[si] - X[0], X[-1] - X[si], Y[sj] - Y[0], Y[-1] - Y[sj]) + h
+    out["inscribed_radius"] = float(min(d_out.min() if d_out.size else math.inf, beyond))
+    modes = np.asarray(mp.modes)[r]
+    out["n_mode_combinations"] = len({tuple(int(q) for q in m) for m in modes})
+    nik, nfk = int(np.count_nonzero(mp.boundary_ik)), int(np.count_nonzero(mp.boundary_fk))
+    out["fk_boundary_fraction"] = nfk / (nik + nfk) if nik + nfk else None
+    _summary(out, "stability_margin", np.asarray(mp.margin)[r])
+    _summary(out, "singularity_distance", singularity_distance_map(mp, h)[r])
+    if want & _INDEX_METRICS:
+        system = System.from_mechanism(mech)
+        Xc, ch = _cell_states(mp, ws, system)
+        ind = index_arrays(mech, Xc, ch, system=system)
+        _summary(out, "cond", ind.cond)
+        _summary(out, "force_stiffness", ind.force_stiffness)
+        _summary(out, "moment_stiffness", ind.moment_stiffness)
+        _summary(out, "manipulability", ind.manipulability)
+        _summary(out, "velocity_minor", ind.ellipse_axes[:, 1])
+        out["max_curvature"] = _f(np.max(ind.curvature)) if len(ind) else None
+        strain = ind.max_strain
+        strain = strain[np.isfinite(strain)]
+        out["max_strain"] = _f(strain.max()) if strain.size else None
+    u = np.asarray(mp.inputs)[r]  # internal units (m, rad)
+    in_range = np.ones(len(u), bool)
+    for k, leg in enumerate(mech.legs):
+        span = float(u[:, k].max() - u[:, k].min())
+        out[f"input_span_{k + 1}"] = math.degrees(span) if leg.actuation == "revolute" else span
+        if leg.range is not None:
+            lo, hi = leg.range
+            if leg.actuation == "revolute":  # a joint angle is the same modulo 360 deg
+                in_range &= np.mod(u[:, k] - lo, 2 * math.pi) <= hi - lo
+            else:
+                in_range &= (u[:, k] >= lo) & (u[:, k] <= hi)
+    if any(leg.range is not None for leg in mech.legs):
+        out["in_range_fraction"] = float(in_range.mean())
+
+
 def evaluate_design(task: DesignTask) -> dict[str, Any]:
     """Compute one row of a study: the design ``task.params`` at orientation ``task.theta_deg``.
 
@@ -114,8 +198,17 @@ def evaluate_design(task: DesignTask) -> dict[str, Any]:
     the grid parameters, ``theta_deg``, the metrics of ``task.metrics`` (``None`` where
     undefined), ``complete`` (false when a time budget cut the computation short), ``error``,
     ``note`` (the workspace's message, e.g. no stable solution at the seed) and ``elapsed_s``.
+
+    Parameters
+    ----------
+    task : DesignTask
+        The design, orientation, workspace settings and metrics of the row.
+
+    Returns
+    -------
+    dict
+        The row.
     """
-    from .. import ik
     from ..mechanism import mechanism_from_dict
     from ..solve.workspace import workspace
 
@@ -124,104 +217,24 @@ def evaluate_design(task: DesignTask) -> dict[str, Any]:
     row.update({k: float(v) for k, v in task.params})
     row["theta_deg"] = float(task.theta_deg)
     out: dict[str, Any] = {m: None for m in task.metrics}
-    want = set(task.metrics)
     complete, error, note = False, "", ""
     s = task.workspace
     try:
         mech = mechanism_from_dict(dict(task.mechanism), source=task.source)
-        budget = s.get("time_budget")
         ws = workspace(mech, math.radians(task.theta_deg), seed=tuple(s["seed"]), step=s.get("step"),
                        bounds=s.get("bounds"), max_mode=int(s["max_mode"]), all_aspects=bool(s["all_aspects"]),
-                       time_budget=budget)
+                       time_budget=s.get("time_budget"))
         complete = "time budget" not in ws.message
         note = " ".join(ws.message.split())
         h = float(ws.step)
-        X, Y = np.asarray(ws.x, float), np.asarray(ws.y, float)
-        union = np.zeros((len(Y), len(X)), bool)
-        for mp in ws.maps:
-            union |= mp.reached
+        union = ws.union()
         out["workspace_area"] = float(union.sum()) * h * h
         out["n_aspects"] = len(ws.maps)
         out["singularity_free_area"] = float(ws.maps[0].area_cells) * h * h if ws.maps else 0.0
+        out["aspect_areas"] = ";".join(f"{mp.area_cells * h * h:.6g}" for mp in ws.maps)
         out["touches_bounds"] = bool(union[0].any() or union[-1].any() or union[:, 0].any() or union[:, -1].any())
         if ws.maps:
-            mp = ws.maps[0]
-            r = mp.reached
-            jj, ii = np.nonzero(r)
-            sj = int(np.argmin(np.abs(Y - ws.seed[1])))
-            si = int(np.argmin(np.abs(X - ws.seed[0])))
-            # inscribed radius: nearest grid point not reached, or the first point beyond the grid
-            gx, gy = np.meshgrid(X, Y)
-            d_out = np.hypot(gx[~r] - X[si], gy[~r] - Y[sj])
-            beyond = min(X[si] - X[0], X[-1] - X[si], Y[sj] - Y[0], Y[-1] - Y[sj]) + h
-            out["inscribed_radius"] = float(min(d_out.min() if d_out.size else math.inf, beyond))
-            modes = np.asarray(mp.modes)[r]
-            out["n_mode_combinations"] = len({tuple(int(q) for q in m) for m in modes})
-            nik, nfk = int(np.count_nonzero(mp.boundary_ik)), int(np.count_nonzero(mp.boundary_fk))
-            out["fk_boundary_fraction"] = nfk / (nik + nfk) if nik + nfk else None
-            margin = np.asarray(mp.margin)[r]
-            out["min_stability_margin"] = _f(margin.min())
-            out["mean_stability_margin"] = _f(margin.mean())
-            cond = np.asarray(mp.cond)[r]
-            cond = cond[np.isfinite(cond)]
-            if cond.size:
-                out["cond_min"], out["cond_mean"], out["cond_max"] = (_f(cond.min()), _f(cond.mean()),
-                                                                      _f(cond.max()))
-            u = np.asarray(mp.inputs)[r]  # internal units (m, rad)
-            in_range = np.ones(len(u), bool)
-            for k, leg in enumerate(mech.legs):
-                span = float(u[:, k].max() - u[:, k].min())
-                out[f"input_span_{k + 1}"] = math.degrees(span) if leg.actuation == "revolute" else span
-                if leg.range is not None:
-                    lo, hi = leg.range
-                    if leg.actuation == "revolute":  # a joint angle is the same modulo 360 deg
-                        in_range &= np.mod(u[:, k] - lo, 2 * math.pi) <= hi - lo
-                    else:
-                        in_range &= (u[:, k] >= lo) & (u[:, k] <= hi)
-            if any(leg.range is not None for leg in mech.legs):
-                out["in_range_fraction"] = float(in_range.mean())
-            # strain: full IK at a few cells, the solution of this aspect picked by its inputs
-            n_samples = int(s.get("strain_samples", 0))
-            if want & set(_STRAIN_METRICS) and n_samples > 0:
-                coords = np.stack([X[ii], Y[jj]], -1)
-                cells = []  # the extreme cells of the aspect in n_samples directions
-                for a in np.arange(n_samples) * (2 * math.pi / n_samples):
-                    k = int(np.argmax(coords @ np.array([math.cos(a), math.sin(a)])))
-                    cells.append((int(jj[k]), int(ii[k])))
-                cells = list(dict.fromkeys(cells))
-                revolute = np.array([leg.actuation == "revolute" for leg in mech.legs])
-                scale = np.where(revolute, 1.0, float(mech.length_scale))
-                kmax, smax, used = 0.0, None, 0
-                for c, (j, i) in enumerate(cells):
-                    left = None if budget is None else budget - (time.perf_counter() - t0)
-                    if left is not None and left <= 0:
-                        complete = False
-                        break
-                    ik_budget = IK_BUDGET if left is None else min(IK_BUDGET, left / (len(cells) - c))
-                    try:
-                        res = ik(mech, (float(X[i]), float(Y[j]), math.radians(task.theta_deg)),
-                                 max_mode=int(s["max_mode"]), time_budget=ik_budget)
-                    except Exception:  # noqa: BLE001 - a sample without IK is skipped (strain_samples says so)
-                        continue
-                    sols = list(res.solutions)
-                    if not sols:
-                        continue
-                    du = np.array([np.asarray(q.inputs, float) for q in sols]) - mp.inputs[j, i]
-                    du = np.where(revolute, (du + math.pi) % (2 * math.pi) - math.pi, du)  # angles modulo 2 pi
-                    dist = np.max(np.abs(du) / scale, axis=1)
-                    best = int(np.argmin(dist))
-                    if dist[best] > 1e-5:
-                        continue
-                    used += 1
-                    for leg, rod in zip(mech.legs, sols[best].rods):
-                        kap = float(np.max(np.abs(rod.curvature())))
-                        kmax = max(kmax, kap)
-                        if leg.rod.radius is not None:
-                            smax = max(smax or 0.0, leg.rod.radius * kap)
-                out["strain_samples"] = used
-                if used:
-                    out["max_curvature"] = _f(kmax)
-                    out["max_strain"] = _f(smax)
+            _aspect_metrics(out, set(task.metrics), ws, mech)
     except Exception as e:  # a failing design is a row with an error, never a failed study
         error, complete = _one_line(e), False
         out = {m: None for m in task.metrics}

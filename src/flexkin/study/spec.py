@@ -37,7 +37,7 @@ _TOP_KEYS = ("name", "mechanism", "orientations", "metrics", "grid", "workspace"
 _RANGE_KEYS = ("start", "stop", "num")
 #: workspace settings and their defaults (``None``: flexkin's default)
 WORKSPACE_DEFAULTS: dict[str, Any] = {"step": None, "bounds": None, "seed": [0.0, 0.0], "max_mode": 2,
-                                      "all_aspects": True, "time_budget": None, "strain_samples": 8}
+                                      "all_aspects": True, "time_budget": None}
 MAX_TASKS = 1_000_000
 MAX_FILE_BYTES = 1024 * 1024
 
@@ -294,11 +294,6 @@ def _workspace(value: Any) -> dict[str, Any]:
         if t <= 0:
             raise _Problem("workspace.time_budget", f"must be > 0 (s), got {t!r}")
         out["time_budget"] = t
-    if "strain_samples" in value:
-        n = value["strain_samples"]
-        if isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= 1000:
-            raise _Problem("workspace.strain_samples", f"expected an integer from 0 to 1000, got {_show(n)}")
-        out["strain_samples"] = n
     if out["bounds"] is not None and out["seed"] is not None:
         b, s = out["bounds"], out["seed"]
         if not (b[0] <= s[0] <= b[1] and b[2] <= s[1] <= b[3]):
