@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from ..analysis.jacobian import kinematic_jacobians
 from ..analysis.stability import mechanism_stability
+from ..analysis.verify import verify_solutions
 from ..core.geometry2d import wrap_to_pi
 from ..results import Solution
 from ..rod.atlas import in_scope
@@ -174,9 +175,12 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
 
 
 def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDArray,
-                    residual: NDArray | None = None, modes: NDArray | None = None) -> list[Solution]:
-    """:class:`~flexkin.results.Solution` objects (with stability and Jacobians) for equilibria
-    ``X`` (n, n_unknowns) in ``charts`` (n, 3); residuals are recomputed when not given."""
+                    residual: NDArray | None = None, modes: NDArray | None = None,
+                    fixed: str = "pose") -> list[Solution]:
+    """:class:`~flexkin.results.Solution` objects (with stability, Jacobians and the independent
+    check of :mod:`flexkin.analysis.verify`: ``verified``, ``condition``) for equilibria ``X``
+    (n, n_unknowns) in ``charts`` (n, 3); residuals are recomputed when not given.  ``fixed``
+    (``"pose"`` or ``"inputs"``) selects the Newton matrix whose condition is reported."""
     X = np.atleast_2d(np.asarray(X, dtype=float))
     charts = np.atleast_2d(np.asarray(charts, dtype=np.int64))
     if len(X) == 0:
@@ -188,6 +192,7 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
         modes = modes_b
     stab = mechanism_stability(system, X, charts)
     jac = kinematic_jacobians(system, X, charts, load)
+    check = verify_solutions(system, X, charts, load, modes, boundary, fixed)
     q, _ = system.unit_rods(X, charts)
     lay = system.layout
     A, alpha, L = system.clamps(X[:, lay.inputs])
@@ -201,7 +206,8 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
         sols.append(Solution(mech, tuple(float(v) for v in X[j, lay.pose]), tuple(float(v) for v in X[j, lay.inputs]),
                              tuple(int(v) for v in modes[j]),
                              rods, X[j].copy(), charts[j].copy(), float(residual[j]), st,
-                             jac.item(j, system.L_ref)))
+                             jac.item(j, system.L_ref), verified=bool(check.verified[j]),
+                             condition=float(check.condition[j]), verify_error=float(check.error[j])))
     return sols
 
 
