@@ -11,20 +11,28 @@ reach it form a one-parameter family: a curve in the rod's parameter space.
 The curves are extracted as level sets on the dimensionless atlas (one grid for all
 d-modes up to the maximum, see :mod:`flexkin.rod.atlas`) with contourpy's marching
 squares.  Every vertex carries its chart coordinates, d-mode, actuator input and the
-tip force it would exert in the world frame.
+tip force it would exert in the world frame.  The tip evaluations (closed form) and the
+snapping of the polylines onto the exact level set (Newton along the normal with the
+analytic gradient of the tip, :func:`flexkin.rod.kernels.unified_eval`, and of the
+condition, :func:`flexkin.solve.conditions.condition_eval`) are compiled.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import contourpy
 import numpy as np
 from numpy.typing import NDArray
 
 from ..core.geometry2d import rotate
+from ..core.jit import njit
 from ..rod.atlas import get_atlas
-from ..rod.closed_form import kr_from_k, mode_of, tip_chart, to_paper
+from ..rod.closed_form import kr_from_k, mode_of, to_paper
+from ..rod.kernels import FX, FY, NQ, X, Y, unified_eval
+from .conditions import condition_eval
 
 __all__ = ["LegCurve", "leg_curves"]
 
@@ -86,11 +94,7 @@ def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.
             z = np.ma.masked_where(~mask_f(atlas.x, atlas.y), z)
         gen = contourpy.contour_generator(x=atlas.PHIS, y=atlas.V, z=z, name="serial",
                                           line_type=contourpy.LineType.Separate)
-
-        def g(zv, zp, f=f):
-            t = tip_chart(zv, zp)
-            return f(t.x, t.y)
-
+        code, par = act.condition(B[i])
         branches = []
         for line in gen.lines(0.0):
             if len(line) < 2:
@@ -105,14 +109,13 @@ def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.
                 bad = np.flatnonzero(jump > lim)
                 if bad.size == 0 or len(zl) > 20000:
                     break
-                mid = _snap(g, 0.5 * (zl[bad] + zl[bad + 1]), zl[bad + 1] - zl[bad],
+                mid = _snap(code, par, 0.5 * (zl[bad] + zl[bad + 1]), zl[bad + 1] - zl[bad],
                             max_shift=0.25 * np.hypot(*(zl[bad + 1] - zl[bad]).T))
                 zl = np.insert(zl, bad + 1, mid, axis=0)
                 data = _branch_data(leg, B[i], zl[:, 0], zl[:, 1])
             if mask_f is not None:  # length legs: keep the ray, not its opposite
-                t = tip_chart(zl[:, 0], zl[:, 1])
-                if not np.all(mask_f(t.x, t.y)):
-                    keep = mask_f(t.x, t.y)
+                keep = mask_f(data["x"], data["y"])
+                if not np.all(keep):
                     for piece in np.split(np.arange(len(zl)), np.flatnonzero(np.diff(keep.astype(int))) + 1):
                         if keep[piece[0]] and len(piece) >= 2:
                             branches.append(_branch_data(leg, B[i], zl[piece, 0], zl[piece, 1]))
@@ -122,42 +125,74 @@ def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.
     return out
 
 
-def _snap(g, z: NDArray[np.float64], direction: NDArray[np.float64] | None = None,
+def _snap(code: int, par: NDArray[np.float64], z: NDArray[np.float64], direction: NDArray[np.float64],
           iters: int = 5, max_shift: NDArray[np.float64] | float = 0.1) -> NDArray[np.float64]:
-    """Move points ``z`` (n, 2) of chart ``(v, phis)`` onto ``g = 0`` along the curve normal.
+    """Move points ``z`` (n, 2) of chart ``(v, phis)`` onto the leg's level set (condition
+    ``code``, ``par``, :meth:`~flexkin.mechanism.actuators.Actuator.condition`) along the
+    normal of the local curve tangent ``direction`` (n, 2).
 
-    ``direction`` is the local curve tangent (default: from neighbouring points).  Points
-    that would move by more than ``max_shift`` (they would jump to another branch of the
-    level set) or where the iteration does not settle keep their original position.
+    Points that would move by more than ``max_shift`` (they would jump to another branch of
+    the level set) or where the iteration does not settle keep their original position.
     """
-    z = np.asarray(z, dtype=float)
-    if direction is None:
-        if len(z) < 2:
-            return z
-        direction = np.gradient(z, axis=0)
-    n = np.stack([-direction[:, 1], direction[:, 0]], -1)
-    n /= np.maximum(np.hypot(n[:, 0], n[:, 1]), 1e-300)[:, None]
-    t = np.zeros(len(z))
-    h = 1e-7
-    with np.errstate(divide="ignore", invalid="ignore"):
+    z = np.ascontiguousarray(z, dtype=float)
+    out = np.empty_like(z)
+    shift = np.broadcast_to(np.asarray(max_shift, dtype=float), (len(z),)).copy()
+    _snap_kernel(int(code), float(par[0]), float(par[1]), z, np.ascontiguousarray(direction, dtype=float),
+                 iters, shift, out)
+    return out
+
+
+@njit(cache=True)
+def _snap_kernel(code, p0, p1, z, direction, iters, max_shift, out) -> None:
+    """Newton along the normal of ``direction`` on ``g(tip(v, phis)) = 0`` with the analytic
+    gradient; the step is capped at 0.05 per iteration (see :func:`_snap`)."""
+    q = np.empty(NQ)
+    gr = np.empty((NQ, 3))
+    for k in range(z.shape[0]):
+        nx, ny = -direction[k, 1], direction[k, 0]
+        h = max(math.hypot(nx, ny), 1e-300)
+        nx /= h
+        ny /= h
+        t = 0.0
         for _ in range(iters):
-            p = z + t[:, None] * n
-            g0 = g(p[:, 0], p[:, 1])
-            g1 = g(p[:, 0] + h * n[:, 0], p[:, 1] + h * n[:, 1])
-            step = g0 * h / (g1 - g0)
-            t = t - np.where(np.isfinite(step), np.clip(step, -0.05, 0.05), 0.0)
-        p = z + t[:, None] * n
-        ok = np.isfinite(g(p[:, 0], p[:, 1])) & (np.abs(t) < max_shift)
-    return np.where(ok[:, None], p, z)
+            unified_eval(z[k, 0] + t * nx, z[k, 1] + t * ny, q, gr)
+            g, gx, gy, _a, _ax, _ay, _ok = condition_eval(code, p0, p1, q[X], q[Y])
+            dg = (gx * gr[X, 0] + gy * gr[Y, 0]) * nx + (gx * gr[X, 1] + gy * gr[Y, 1]) * ny
+            step = g / dg
+            if np.isfinite(step):
+                t -= min(max(step, -0.05), 0.05)
+        px, py = z[k, 0] + t * nx, z[k, 1] + t * ny
+        unified_eval(px, py, q, gr)
+        g, gx, gy, _a, _ax, _ay, _ok = condition_eval(code, p0, p1, q[X], q[Y])
+        if np.isfinite(g) and abs(t) < max_shift[k]:
+            out[k, 0], out[k, 1] = px, py
+        else:
+            out[k, 0], out[k, 1] = z[k, 0], z[k, 1]
+
+
+@njit(cache=True)
+def _tips(v, phis, out) -> None:
+    """Unit-rod tips ``out[:, 0:4] = x, y, f_x, f_y`` (local frame, force on the tip) at chart
+    points ``(v, phis)`` (closed form, :func:`~flexkin.rod.kernels.unified_eval`)."""
+    q = np.empty(NQ)
+    gr = np.empty((NQ, 3))
+    for k in range(v.shape[0]):
+        unified_eval(v[k], phis[k], q, gr)
+        out[k, 0] = q[X]
+        out[k, 1] = q[Y]
+        out[k, 2] = q[FX]
+        out[k, 3] = q[FY]
 
 
 def _branch_data(leg, B, v, phis) -> dict[str, NDArray]:
-    t = tip_chart(v, phis)
+    v = np.ascontiguousarray(v, dtype=float)
+    phis = np.ascontiguousarray(phis, dtype=float)
+    t = np.empty((len(v), 4))
+    _tips(v, phis, t)
     ku = np.tanh(v)
-    u, alpha, L = leg.actuator.from_tip(B, t.x, t.y)
-    F = leg.rod.EI / L**2 * t.R
-    force = rotate(np.stack([np.cos(t.psi), np.sin(t.psi)], -1), alpha) * F[:, None]
+    u, alpha, L = leg.actuator.from_tip(B, t[:, 0], t[:, 1])
+    force = rotate(t[:, 2:4], alpha) * (leg.rod.EI / L**2)[:, None]
     k, psi, q = to_paper(ku, phis)
     return {"v": v, "ku": ku, "phis": phis, "z": np.stack([v, phis], -1), "k": k, "psi": psi,
             "kr": kr_from_k(k, psi), "mode": mode_of(phis), "input": u, "force": force, "length": L,
-            "tip_moment": np.zeros_like(v)}
+            "tip_moment": np.zeros_like(v), "x": t[:, 0], "y": t[:, 1]}
