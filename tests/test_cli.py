@@ -125,3 +125,75 @@ def test_bad_arguments_exit_2_with_one_clear_message(capsys, args, fragment):
     assert code == 2
     assert fragment in err
     assert "Traceback" not in err and out == ""
+
+
+# ---- issue 14: one rod clamped at both ends ------------------------------------------------
+def test_rod_clamped_tip_lists_tip_moments_that_the_rod_equations_confirm(capsys, tmp_path):
+    from scipy.integrate import solve_ivp
+
+    png = tmp_path / "rod.png"
+    code, out, err = run(capsys, "rod", "--length", "1", "--EI", "2", "--tip", "0.6", "0.3", "--tip-angle", "30",
+                         "--json", "--plot", str(png))
+    assert code == 0 and png.stat().st_size > 10_000 and str(png) in err
+    d = json.loads(out)
+    assert d["joint"] == "clamped" and d["tip_angle_deg"] == pytest.approx(30)
+    assert d["solutions"]
+    for s in d["solutions"]:
+        assert "tip_moment" in s
+        fx, fy = s["tip_force"]
+
+        def rhs(_, z):
+            return [math.cos(z[2]), math.sin(z[2]), z[3] / 2.0, fx * math.sin(z[2]) - fy * math.cos(z[2])]
+
+        z = solve_ivp(rhs, (0, 1), [0, 0, 0, s["base_moment"]], method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+        assert math.hypot(z[0] - 0.6, z[1] - 0.3) < 1e-6
+        assert abs(math.remainder(z[2] - math.radians(30), 2 * math.pi)) < 1e-6   # clamped tangent
+        assert z[3] == pytest.approx(s["tip_moment"], abs=1e-5)                # EI theta'(L)
+    code, out, err = run(capsys, "rod", "--length", "1", "--EI", "2", "--tip", "0.6", "0.3", "--tip-angle", "30")
+    assert code == 0 and "mL [N m]" in out and "clamped at 30 deg" in out
+
+
+def test_rod_tip_angle_with_sweep_is_refused(capsys):
+    code, out, err = run(capsys, "rod", "--sweep", "--tip-angle", "10", "--points", "3")
+    assert code == 2 and "--tip-angle" in err
+
+
+# ---- issue 18, defect 5: warnings are one line on stderr -------------------------------------
+def test_implausible_file_warns_in_one_line_per_problem(capsys, tmp_path):
+    text = Path(PROTO).read_text(encoding="utf-8").replace("radius = 1.5e-3", "radius = 1.0").replace("E = 68e9",
+                                                                                                    "E = 68")
+    f = tmp_path / "mm_for_m.toml"
+    f.write_text(text, encoding="utf-8")
+    code, out, err = run(capsys, "show", str(f))
+    assert code == 0
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 2, err
+    assert all(ln.startswith("flexkin: warning: ") and str(f) in ln for ln in lines)
+    assert "rod.radius" in lines[0] and "rod.E" in lines[1] and "E = 68 Pa" in lines[1]
+
+
+def test_revolute_inputs_in_radians_warn(capsys):
+    code, out, err = run(capsys, "fk", RFR, "--inputs", "1.5788", "-2.434", "-0.21", "--json", "--quiet")
+    assert code == 0
+    warn = [ln for ln in err.splitlines() if "warning" in ln]
+    assert len(warn) == 1 and "--inputs" in warn[0] and "radians" in warn[0] and "90.46" in warn[0]
+    json.loads(out)  # the answer is still given
+    code, out, err = run(capsys, "fk", RFR, "--inputs", "90.46", "-139.47", "-12.03", "--json", "--quiet")
+    assert "warning" not in err
+
+
+# ---- issue 18, defect 1: revolute input ranges compare angles modulo 360 deg ----------------
+def test_revolute_range_wraps_angles(capsys):
+    from flexkin.mechanism import load_mechanism
+
+    mech = load_mechanism(RFR)  # leg 2: range [60, 240] deg
+    assert bool(mech.legs[1].in_range(math.radians(-139.467)))      # = 220.533 deg, inside
+    assert not bool(mech.legs[1].in_range(math.radians(-60.0)))     # = 300 deg, outside
+    code, out, err = run(capsys, "ik", RFR, "--pose", "0.05", "0.02", "20", "--feasible-only", "--json")
+    assert code == 0
+    sols = json.loads(out)["solutions"]
+    assert sols, err  # before the fix: "none of the 8 equilibria is feasible"
+    for s in sols:
+        assert s["feasible"] and not s["feasibility"]["inputs_out_of_range"]
+        u2 = s["inputs"][1] % 360.0
+        assert 60.0 <= u2 <= 240.0

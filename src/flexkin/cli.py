@@ -1,8 +1,12 @@
-"""Command-line interface: ``flexkin {show, rod, ik, fk} ...`` (SPEC §4).
+"""Command-line interface: ``flexkin {show, rod, ik, fk, path, workspace, refine, reproduce, study,
+explore} ...`` (SPEC §4).
 
-Thin: parse -> call the library -> print a table or the JSON contract -> write figures.
-User mistakes (bad files, bad numbers) end with one line on stderr and exit status 2;
-"no solution" is an answer (exit 0, explanation on stderr).
+Thin: parse -> call the library -> print a table or the JSON contract -> write figures and data
+files (every file written is named on stderr).  User mistakes (bad files, bad numbers) end with
+one line on stderr and exit status 2; "no solution" is an answer (exit 0, explanation on
+stderr).  Warnings (implausible values, :class:`~flexkin.errors.FlexkinWarning`) are one line
+each on stderr.  Long work shows a progress bar on stderr when it is a terminal (``--quiet``
+silences it).
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ import math
 import os
 import re
 import sys
+import warnings
 from typing import Any, Sequence
 
 import numpy as np
@@ -72,21 +77,30 @@ def _mode(text: str) -> int:
     return q
 
 
+def _add_common_kinematics(k, name: str) -> None:
+    k.add_argument("--load", nargs=3, type=_finite("--load"), metavar=("FX", "FY", "MZ"),
+                   help="load wrench at P [N, N, N m] (default: the file's [load] or zero)")
+    k.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode of any rod (default 2)")
+    k.add_argument("--quiet", "-q", action="store_true", help="no progress display on stderr")
+
+
 def _build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="flexkin", description="Complete kinematic analysis of planar parallel continuum mechanisms.")
     p.add_argument("--version", action="version", version=f"flexkin {_version()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     s = sub.add_parser("show", help="print a mechanism file and draw it")
-    s.add_argument("mechanism", help="mechanism file (TOML, SPEC §3)")
+    s.add_argument("mechanism", help="mechanism file (TOML, docs/mechanism_file.md)")
     s.add_argument("--plot", metavar="FILE", help="write a drawing of the mechanism")
 
-    r = sub.add_parser("rod", help="every equilibrium of one rod with a pinned tip (paper Fig. 19)")
+    r = sub.add_parser("rod", help="every equilibrium of one rod with a pinned or clamped tip (paper Fig. 19)")
     r.add_argument("--length", type=_positive("--length"), help="rod length L [m]")
     r.add_argument("--EI", type=_positive("--EI"), help="bending stiffness [N m^2]")
     r.add_argument("--E", type=_positive("--E"), help="Young's modulus [Pa] (with --radius)")
     r.add_argument("--radius", type=_positive("--radius"), help="radius of the circular section [m]")
-    r.add_argument("--tip", nargs=2, type=_finite("--tip"), metavar=("X", "Y"), help="pinned tip point [m]")
+    r.add_argument("--tip", nargs=2, type=_finite("--tip"), metavar=("X", "Y"), help="tip point [m]")
+    r.add_argument("--tip-angle", type=_finite("--tip-angle"), metavar="DEG",
+                   help="clamp the tip too, with this tangent angle [deg, world frame] (default: pinned tip)")
     r.add_argument("--clamp-angle", type=_finite("--clamp-angle"), default=0.0, metavar="DEG",
                    help="clamp tangent angle [deg] (default 0)")
     r.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode (default 2)")
@@ -102,25 +116,53 @@ def _build_parser() -> argparse.ArgumentParser:
     for name, helptext in (("ik", "inverse kinematics: every equilibrium at a platform pose"),
                            ("fk", "forward kinematics: every equilibrium pose for actuator inputs")):
         k = sub.add_parser(name, help=helptext)
-        k.add_argument("mechanism", help="mechanism file (TOML, SPEC §3)")
+        k.add_argument("mechanism", help="mechanism file (TOML, docs/mechanism_file.md)")
         if name == "ik":
             k.add_argument("--pose", nargs=3, type=_finite("--pose"), metavar=("X", "Y", "THETA"), required=True,
                            help="platform pose: m, m, deg")
         else:
             k.add_argument("--inputs", nargs=3, type=_finite("--inputs"), metavar=("U1", "U2", "U3"), required=True,
                            help="actuator inputs: m for prismatic and length legs, deg for revolute legs")
-        k.add_argument("--load", nargs=3, type=_finite("--load"), metavar=("FX", "FY", "MZ"),
-                       help="load wrench at P [N, N, N m] (default: the file's [load] or zero)")
-        k.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode of any rod (default 2)")
+        _add_common_kinematics(k, name)
         k.add_argument("--json", action="store_true", help="print the SPEC §4 JSON object")
-        k.add_argument("--plot", metavar="FILE", help="figure with one panel per solution")
+        k.add_argument("--feasibility", action="store_true",
+                       help="with --json: each solution's feasibility verdict and reasons (collisions, strain, "
+                            "input ranges; about 5 ms per solution, so only on request; always with --feasible-only)")
+        k.add_argument("--plot", metavar="FILE",
+                       help="figure with one panel per solution (pages of 20: FILE, FILE_2, ...)")
+        k.add_argument("--shapes", metavar="FILE",
+                       help="rod shapes of every listed solution: .csv (solution, leg, s, x, y, theta [deg], "
+                            "moment) or .npz")
         k.add_argument("--stable-only", action="store_true", help="list only the stable equilibria")
         k.add_argument("--feasible-only", action="store_true",
                        help="list only the feasible equilibria (no collision, strain and inputs within limits)")
+        k.add_argument("--model", choices=("kirchhoff", "cosserat"), default="kirchhoff",
+                       help="kirchhoff (default), or cosserat: then refine every listed solution with extension, "
+                            "shear and self-weight (needs E and radius; [rod] G or poisson, density)")
+        k.add_argument("--gravity", nargs=2, type=_finite("--gravity"), metavar=("GX", "GY"),
+                       help="with --model cosserat: gravity in the plane [m/s^2] (default: the file's "
+                            "[environment] gravity, else none)")
         if name == "ik":
             k.add_argument("--curves", metavar="FILE", help="figure of the geometric-condition curves (Fig. 7)")
+
+    rf = sub.add_parser("refine", help="refine every Kirchhoff equilibrium with a Cosserat model "
+                                       "(extension, shear, self-weight)")
+    rf.add_argument("mechanism", help="mechanism file (TOML, docs/mechanism_file.md); needs E and radius")
+    g = rf.add_mutually_exclusive_group(required=True)
+    g.add_argument("--pose", nargs=3, type=_finite("--pose"), metavar=("X", "Y", "THETA"),
+                   help="platform pose (IK): m, m, deg")
+    g.add_argument("--inputs", nargs=3, type=_finite("--inputs"), metavar=("U1", "U2", "U3"),
+                   help="actuator inputs (FK): m for prismatic and length legs, deg for revolute legs")
+    rf.add_argument("--gravity", nargs=2, type=_finite("--gravity"), metavar=("GX", "GY"),
+                    help="gravity in the plane [m/s^2] (default: the file's [environment] gravity, else none)")
+    _add_common_kinematics(rf, "refine")
+    rf.add_argument("--stable-only", action="store_true", help="refine only the stable Kirchhoff equilibria")
+    rf.add_argument("--json", action="store_true", help="print the JSON result")
+    rf.add_argument("--plot", metavar="FILE",
+                    help="Kirchhoff and refined shapes drawn over each other (pages of 20: FILE, FILE_2, ...)")
+
     pa = sub.add_parser("path", help="follow one IK solution along a straight path of poses (singularities, stability)")
-    pa.add_argument("mechanism", help="mechanism file (TOML, SPEC §3)")
+    pa.add_argument("mechanism", help="mechanism file (TOML, docs/mechanism_file.md)")
     pa.add_argument("--from", dest="start", nargs=3, type=_finite("--from"), metavar=("X", "Y", "THETA"), required=True,
                     help="start pose: m, m, deg")
     pa.add_argument("--to", dest="end", nargs=3, type=_finite("--to"), metavar=("X", "Y", "THETA"), required=True,
@@ -128,14 +170,20 @@ def _build_parser() -> argparse.ArgumentParser:
     pa.add_argument("--steps", type=_count("--steps"), default=50, help="number of path intervals (default 50)")
     pa.add_argument("--solution", type=_count("--solution", 1), default=None,
                     help="id of the IK solution at the start pose to follow, as numbered by 'flexkin ik' "
-                         "(the '#' column and the JSON 'id'; default: the first stable one)")
+                         "(the '#' column and the JSON 'id', also after --stable-only; default: the first stable one)")
     pa.add_argument("--load", nargs=3, type=_finite("--load"), metavar=("FX", "FY", "MZ"),
                     help="load wrench at P [N, N, N m] (default: the file's [load] or zero)")
     pa.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode for the start IK (default 2)")
-    pa.add_argument("--json", action="store_true", help="print the JSON result")
-    pa.add_argument("--plot", metavar="FILE", help="inputs, Jacobian determinants and stability margin vs t")
+    pa.add_argument("--json", action="store_true",
+                    help="print the JSON result (per sample: pose, inputs, modes, stability, Jacobians, strain, "
+                         "feasibility)")
+    pa.add_argument("--plot", metavar="FILE", help="inputs, singularity functions, Jacobian determinants and "
+                                                   "stability margin vs t")
+    pa.add_argument("--shapes", metavar="FILE", help="rod shapes at every sample: .csv or .npz")
+    pa.add_argument("--quiet", "-q", action="store_true", help="no progress display on stderr")
+
     wk = sub.add_parser("workspace", help="constant-orientation workspace by wave propagation (paper Fig. 17)")
-    wk.add_argument("mechanism", help="mechanism file (TOML, SPEC §3)")
+    wk.add_argument("mechanism", help="mechanism file (TOML, docs/mechanism_file.md)")
     wk.add_argument("--theta", type=_finite("--theta"), action="append", required=True, metavar="DEG",
                     help="platform orientation [deg]; repeat for several orientations (computed in parallel)")
     wk.add_argument("--seed", nargs=2, type=_finite("--seed"), metavar=("X", "Y"), default=(0.0, 0.0),
@@ -155,6 +203,7 @@ def _build_parser() -> argparse.ArgumentParser:
     wk.add_argument("--save", metavar="FILE", help="save the maps (.npz; one file per orientation, suffixed)")
     wk.add_argument("--json", action="store_true", help="print a JSON summary")
     wk.add_argument("--plot", metavar="FILE", help="figure like Fig. 17, one panel per orientation")
+    wk.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     from .explore.cli import add_explore_parser
     from .study.cli import add_study_parser
 
@@ -162,23 +211,48 @@ def _build_parser() -> argparse.ArgumentParser:
     add_explore_parser(sub)
     rp = sub.add_parser("reproduce", help="run the paper's whole analysis on the bundled examples; write a report")
     rp.add_argument("--out", default="flexkin_report", help="output directory (default flexkin_report)")
-    rp.add_argument("--quick", action="store_true", help="coarse grids and sweeps (about 20 s)")
+    rp.add_argument("--quick", action="store_true", help="coarse grids and sweeps (about 15 s once compiled)")
+    rp.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     return p
+
+
+def _progress(a) -> bool:
+    from .io.progress import progress_wanted
+
+    return progress_wanted(bool(getattr(a, "quiet", False)))
+
+
+def _written(path: Any) -> None:
+    print(f"written: {path}", file=sys.stderr)
 
 
 def _cmd_reproduce(a) -> int:
     from .reproduce import reproduce
 
     try:
-        res = reproduce(a.out, quick=a.quick, progress=True)
+        res = reproduce(a.out, quick=a.quick, progress=_progress(a))
     except PermissionError as e:
         raise CLIError(f"flexkin reproduce: cannot write to {a.out!r}: {e.strerror}") from None
-    print(f"report written to {res.report} ({len(res.figures)} figures, {res.elapsed:.0f} s)")
+    html = getattr(res, "html", None)
+    print(f"report written to {res.report}" + (f" and {html}" if html else "")
+          + f" ({len(res.figures)} figures, {res.elapsed:.0f} s)")
     for row in res.table2:
-        print(f"  Table 2: theta = {row['theta_deg']:g} deg: rho = {row['flexkin_rho']} m (paper {row['paper_rho']} m)")
+        rho = row["flexkin_rho"]
+        print(f"  Table 2: theta = {row['theta_deg']:g} deg: rho = "
+              + ("not found" if rho is None else f"{rho:.4f} m") + f" (paper {row['paper_rho']} m)")
     for row in res.table1:
-        print(f"  Table 1: paper theta = {row['paper_theta_deg']:g} deg: flexkin pose {row['flexkin_pose']}")
+        p = row["flexkin_pose"]
+        shown = "not found" if p is None else _pose_text(p)
+        print(f"  Table 1: paper theta = {row['paper_theta_deg']:g} deg: flexkin pose {shown}")
     return 0
+
+
+def _pose_text(p: Sequence[float], tol: float = 1e-9) -> str:
+    """``(x m, y m, theta deg)`` to meaningful precision (|x| below ``tol`` m is 0)."""
+    def length(v: float) -> str:
+        return "0" if abs(v) < tol else f"{v:.5g}"
+
+    return f"({length(p[0])} m, {length(p[1])} m, {p[2]:.2f} deg)"
 
 
 def _workspace_task(args: tuple) -> Any:
@@ -189,8 +263,6 @@ def _workspace_task(args: tuple) -> Any:
 
 
 def _cmd_workspace(a) -> int:
-    import os
-
     from .solve.workspace import default_grid
 
     mech = _load_mech(a.mechanism)
@@ -199,24 +271,28 @@ def _cmd_workspace(a) -> int:
               all_aspects=not a.first_aspect)
     thetas = [math.radians(t) for t in a.theta]
     jobs = min(len(thetas), a.jobs or os.cpu_count() or 1)
+    show = _progress(a)
     if jobs > 1:
-        from concurrent.futures import ProcessPoolExecutor
+        from concurrent.futures import ProcessPoolExecutor, as_completed
 
-        from tqdm.auto import tqdm
+        from .io.progress import bar
 
         with ProcessPoolExecutor(max_workers=jobs) as ex:
             futs = [ex.submit(_workspace_task, (mech, th, kw)) for th in thetas]
-            for _ in tqdm([f for f in futs], desc="orientations", unit="map", leave=False, disable=a.json):
-                pass
+            with bar(len(futs), "workspace orientations", unit="map", enabled=show) as b:
+                for _ in as_completed(futs):
+                    b.update(1)
             results = [f.result() for f in futs]
     else:
         from .solve.workspace import workspace
 
-        results = [workspace(mech, th, progress=not a.json, **kw) for th in thetas]
+        results = [workspace(mech, th, progress=show, **kw) for th in thetas]
     if a.save:
         root, ext = os.path.splitext(a.save)
         for t, ws in zip(a.theta, results):
-            ws.save(a.save if len(results) == 1 else f"{root}_theta{t:g}{ext or '.npz'}")
+            f = a.save if len(results) == 1 else f"{root}_theta{t:g}{ext or '.npz'}"
+            ws.save(f)
+            _written(f)
     if a.json:
         out = []
         for ws in results:
@@ -239,7 +315,7 @@ def _cmd_workspace(a) -> int:
         from .plot.workspace import plot_workspace
 
         plot_workspace(results, a.plot, color_by=a.color)
-        print(f"figure written to {a.plot}", file=sys.stderr)
+        _written(a.plot)
     return 0
 
 
@@ -269,25 +345,43 @@ def _count(name: str, lo: int = 1):
 
 
 def _cmd_path(a) -> int:
+    from .io import write_shapes
+    from .io.progress import Ticker
     from .solve.path import follow_path
 
     mech = _load_mech(a.mechanism)
     start = (a.start[0], a.start[1], math.radians(a.start[2]))
     end = (a.end[0], a.end[1], math.radians(a.end[2]))
-    res = follow_path(mech, start, end, steps=a.steps, load=a.load, solution=a.solution, max_mode=a.max_mode)
+    with Ticker(f"flexkin path: {a.steps} steps", enabled=_progress(a)):
+        res = follow_path(mech, start, end, steps=a.steps, load=a.load, solution=a.solution, max_mode=a.max_mode)
+        d = res.to_dict(feasibility=True)
     if a.json:
-        print(_dump(res.to_dict()))
+        print(_dump(d))
     else:
+        sid = getattr(res.start_solution, "id", None)
         print(f"{mech.name}: path from ({a.start[0]:g} m, {a.start[1]:g} m, {a.start[2]:g} deg) to "
-              f"({a.end[0]:g} m, {a.end[1]:g} m, {a.end[2]:g} deg), {a.steps} steps, {len(res.t)} samples reached "
-              f"in {res.elapsed:.2f} s")
+              f"({a.end[0]:g} m, {a.end[1]:g} m, {a.end[2]:g} deg), "
+              + ("" if sid is None else f"solution {sid}, ")
+              + f"{a.steps} steps, {len(res.t)} samples reached in {res.elapsed:.2f} s")
         if len(res.t):
             print(res.table())
+            pts = d["points"]
+            n_ok = sum(1 for q in pts if q.get("feasible"))
+            strains = [q["max_strain"] for q in pts if q.get("max_strain") is not None]
+            line = f"feasible at {n_ok} of {len(pts)} samples"
+            if strains:
+                line += f"; largest bending strain {max(strains):.3g}"
+            bad = next((q for q in pts if not q.get("feasible")), None)
+            if bad is not None:
+                line += f"; first infeasible at t = {bad['t']:.3f}: {'; '.join(bad['feasibility']['reasons'])}"
+            print(line)
     if res.message:
         print(f"flexkin path: {res.message}", file=sys.stderr)
     if a.plot and len(res.t):
         res.plot(a.plot)
-        print(f"figure written to {a.plot}", file=sys.stderr)
+        _written(a.plot)
+    if a.shapes and len(res.t):
+        _written(write_shapes(a.shapes, res))
     return 0
 
 
@@ -321,7 +415,7 @@ def _cmd_show(a) -> int:
         from .plot.mechanism import plot_mechanism_file
 
         plot_mechanism_file(mech, a.plot)
-        print(f"figure written to {a.plot}", file=sys.stderr)
+        _written(a.plot)
     return 0
 
 
@@ -360,6 +454,8 @@ def _cmd_rod(a) -> int:
 
     EI = _rod_EI(a)
     if a.sweep:
+        if a.tip_angle is not None:
+            raise CLIError("flexkin rod: --tip-angle applies to one rod (--tip), not to --sweep")
         L = a.length if a.length is not None else FIG19["length"]
         ty = a.tip_y if a.tip_y is not None else FIG19["tip_y"]
         x0, x1 = a.x_range if a.x_range is not None else (FIG19["x_start"], FIG19["x_end"])
@@ -374,50 +470,144 @@ def _cmd_rod(a) -> int:
             print(sw.table())
         if a.plot:
             sw.plot(a.plot)
-            print(f"figure written to {a.plot}", file=sys.stderr)
+            _written(a.plot)
         return 0
     if a.length is None or a.tip is None:
         raise CLIError("flexkin rod: --length and --tip are required (or use --sweep)")
-    res = solve_rod(a.tip, a.length, EI, clamp_angle=math.radians(a.clamp_angle), max_mode=a.max_mode)
+    tip_angle = None if a.tip_angle is None else math.radians(a.tip_angle)
+    res = solve_rod(a.tip, a.length, EI, clamp_angle=math.radians(a.clamp_angle), tip_angle=tip_angle,
+                    max_mode=a.max_mode)
     if a.json:
         print(_dump(res.to_dict()))
     else:
-        print(f"rod L = {a.length:g} m, EI = {EI:.6g} N m^2, tip ({a.tip[0]:g}, {a.tip[1]:g}) m, "
+        joint = "pinned" if tip_angle is None else f"clamped at {a.tip_angle:g} deg"
+        print(f"rod L = {a.length:g} m, EI = {EI:.6g} N m^2, tip ({a.tip[0]:g}, {a.tip[1]:g}) m {joint}, "
               f"clamp angle {a.clamp_angle:g} deg: {len(res)} equilibria with d-mode <= {a.max_mode}")
         if len(res):
             print(f"{'#':>3} {'mode':>4} {'k':>10} {'psi [deg]':>10} {'Fx [N]':>11} {'Fy [N]':>11} "
-                  f"{'m0 [N m]':>11} {'energy [J]':>11}")
+                  f"{'m0 [N m]':>11} {'mL [N m]':>11} {'energy [J]':>11}")
             for i, s in enumerate(res.solutions, 1):
-                print(f"{i:>3} {s.mode:>4} {s.k:>10.6f} {math.degrees(s.psi):>10.4f} {s.tip_force[0]:>11.5g} "
-                      f"{s.tip_force[1]:>11.5g} {s.base_moment:>11.5g} {s.energy:>11.5g}")
+                k = f"{s.k:>10.6f}" if np.isfinite(s.k) else f"{'-':>10}"
+                print(f"{i:>3} {s.mode:>4} {k} {math.degrees(s.psi):>10.4f} {s.tip_force[0]:>11.5g} "
+                      f"{s.tip_force[1]:>11.5g} {s.base_moment:>11.5g} {s.tip_moment:>11.5g} {s.energy:>11.5g}")
     if not len(res):
         print(f"flexkin rod: {res.message}", file=sys.stderr)
     if a.plot:
         from .plot.rod import plot_rod_solutions
 
         plot_rod_solutions(res, a.plot)
-        print(f"figure written to {a.plot}", file=sys.stderr)
+        _written(a.plot)
     return 0
 
 
-def _cmd_kinematics(a) -> int:
-    from .solve.fk import fk
-    from .solve.ik import ik
+def _kinematics(a, mech):
+    """The IK or FK result of ``a`` (with progress display) and a one-line description."""
+    from .io.progress import Ticker
 
-    mech = _load_mech(a.mechanism)
-    if a.command == "ik":
+    if getattr(a, "pose", None) is not None:
+        from .solve.ik import ik
+
         pose = (a.pose[0], a.pose[1], math.radians(a.pose[2]))
-        res = ik(mech, pose, load=a.load, max_mode=a.max_mode)
+        with Ticker("flexkin ik: all equilibria", enabled=_progress(a)):
+            res = ik(mech, pose, load=a.load, max_mode=a.max_mode)
         what = f"inverse kinematics at pose ({a.pose[0]:g} m, {a.pose[1]:g} m, {a.pose[2]:g} deg)"
-    else:
-        u = [math.radians(v) if leg.actuation == "revolute" else v for v, leg in zip(a.inputs, mech.legs)]
+        return res, what
+    from .mechanism.plausibility import revolute_inputs_look_like_radians
+    from .solve.fk import fk
+
+    note = revolute_inputs_look_like_radians(mech, a.inputs)
+    if note:
+        from .errors import FlexkinWarning
+
+        warnings.warn(note, FlexkinWarning, stacklevel=2)
+    u = [float(leg.from_display(v)) for v, leg in zip(a.inputs, mech.legs)]
+    with Ticker("flexkin fk: searching all equilibria", enabled=_progress(a)):
         res = fk(mech, u, load=a.load, max_mode=a.max_mode)
-        units = ["deg" if leg.actuation == "revolute" else "m" for leg in mech.legs]
-        what = "forward kinematics at inputs (" + ", ".join(f"{v:g} {un}" for v, un in zip(a.inputs, units)) + ")"
+    units = [leg.input_unit for leg in mech.legs]
+    what = "forward kinematics at inputs (" + ", ".join(f"{v:g} {un}" for v, un in zip(a.inputs, units)) + ")"
+    return res, what
+
+
+def _cosserat_setup(a, mech):
+    """Per-leg Cosserat parameters and gravity (checked before any work)."""
+    from .io.material import cosserat_setup
+
+    try:
+        params, gravity = cosserat_setup(mech, a.gravity)
+    except ValueError as e:
+        raise CLIError(f"flexkin {a.command}: {e}") from None
+    if gravity is not None and not any(p.mass_per_length > 0 for p in params):
+        from .errors import FlexkinWarning
+
+        warnings.warn("gravity is given but no rod has a density ([rod] density, kg/m^3): the rods are weightless",
+                      FlexkinWarning, stacklevel=2)
+    return params, gravity
+
+
+def _refine(a, mech, res, setup):
+    """Cosserat refinement of the solutions of ``res`` (with progress display)."""
+    from .cosserat import refine
+    from .io.progress import Ticker
+
+    params, gravity = setup
+    with Ticker(f"flexkin {a.command}: Cosserat refinement of {len(res)} solution(s)", enabled=_progress(a)):
+        return refine(mech, res, params=params, gravity=gravity)
+
+
+def _refined_entries(res, ref) -> dict[int, dict[str, Any]]:
+    """Solution id -> its refined JSON object."""
+    kinds = res.kinds
+    return {s.id: r.to_dict(kinds) for s, r in zip(res.solutions, ref.solutions)}
+
+
+def _refine_table(res, ref) -> str:
+    g = ref.gravity
+    units = [leg.input_unit for leg in res.mechanism.legs]
+    lines = ["Cosserat refinement (extension, shear" + ("" if g is None else f", gravity ({g[0]:g}, {g[1]:g}) m/s^2")
+             + f"): {ref.message}",
+             f"{'#':>3} {'status':>8} {'tau end':>8} {'dP [m]':>9} {'dth [deg]':>9} "
+             + " ".join(f"{'du' + str(i + 1) + ' [' + u + ']':>11}" for i, u in enumerate(units))
+             + f" {'stable':>6} {'verified':>8}"]
+
+    def num(v, w):
+        return f"{'-':>{w}}" if v is None else f"{v:>{w}.3g}"
+
+    def row(tag, r):
+        st = "?" if r.stable is None else ("yes" if r.stable else "no")
+        du = r.input_shift if r.input_shift is not None else (None, None, None)
+        return (f"{tag:>3} {r.status:>8} {r.tau_end:>8.3g} {num(r.position_shift, 9)} {num(r.rotation_shift_deg, 9)} "
+                + " ".join(num(v, 11) for v in du)
+                + f" {st if r.reached else '-':>6} {str(r.verified) if r.reached else '-':>8}")
+
+    for s, r in zip(res.solutions, ref.solutions):
+        lines.append(row(str(s.id), r))
+    for b in ref.born:
+        lines.append(row("new", b))
+    return "\n".join(lines)
+
+
+def _cmd_kinematics(a) -> int:
+    from .io import write_shapes
+
+    if a.gravity is not None and a.model != "cosserat":
+        raise CLIError(f"flexkin {a.command}: --gravity needs --model cosserat")
+    mech = _load_mech(a.mechanism)
+    setup = _cosserat_setup(a, mech) if a.model == "cosserat" else None
+    res, what = _kinematics(a, mech)
     if a.stable_only or a.feasible_only:
         res = res.select(stable_only=a.stable_only, feasible_only=a.feasible_only)
+    ref = _refine(a, mech, res, setup) if setup is not None and len(res) else None
     if a.json:
-        print(_dump(res.to_dict()))
+        d = res.to_dict(feasibility=a.feasibility or a.feasible_only)
+        if a.model == "cosserat":
+            entries = _refined_entries(res, ref) if ref is not None else {}
+            for e in d["solutions"]:
+                e["refined"] = entries.get(e["id"])
+            if ref is not None:
+                rd = ref.to_dict()
+                d["refinement"] = {k: rd[k] for k in ("gravity", "params", "line_loads", "message", "elapsed")}
+                d["refinement"]["born"] = rd["born"]
+        print(_dump(d))
     else:
         load = ", ".join(f"{v:g}" for v in res.load)
         print(f"{mech.name}: {what}, load ({load}), d-modes <= {res.max_mode}: {len(res)} solution(s) "
@@ -425,16 +615,69 @@ def _cmd_kinematics(a) -> int:
         if len(res):
             print("per d-mode combination: " + ", ".join(f"{k}: {v}" for k, v in sorted(res.by_modes().items())))
             print(res.table())
+        if ref is not None:
+            print(_refine_table(res, ref))
     if not len(res) or not res.complete:
         print(f"flexkin {a.command}: {res.message}", file=sys.stderr)
     if a.plot:
-        res.plot(a.plot)
-        print(f"figure written to {a.plot}", file=sys.stderr)
+        if ref is not None:
+            from .plot.refine import plot_refinement
+            from .plot.solutions import page_paths
+
+            figs = plot_refinement(res.solutions, ref, a.plot)
+            files = page_paths(a.plot, len(figs))
+        else:
+            from .plot.solutions import write_solution_pages
+
+            files = write_solution_pages(res, a.plot)
+        for f in files:
+            _written(f)
+    if a.shapes:
+        _written(write_shapes(a.shapes, res))
     if getattr(a, "curves", None):
         from .plot.curves import plot_curves
 
         plot_curves(res, a.curves)
-        print(f"figure written to {a.curves}", file=sys.stderr)
+        _written(a.curves)
+    return 0
+
+
+def _cmd_refine(a) -> int:
+    mech = _load_mech(a.mechanism)
+    a.command = "refine"
+    setup = _cosserat_setup(a, mech)
+    res, what = _kinematics(a, mech)
+    if a.stable_only:
+        res = res.select(stable_only=True)
+    if not len(res):
+        msg = res.message or "no Kirchhoff equilibrium to refine"
+        if a.json:
+            print(_dump({"problem": f"refine-{res.problem}", "mechanism": mech.name, "solutions": [], "born": [],
+                         "message": msg}))
+        print(f"flexkin refine: {msg}", file=sys.stderr)
+        return 0
+    ref = _refine(a, mech, res, setup)
+    if a.json:
+        d = ref.to_dict()
+        for e, s in zip(d["solutions"], res.solutions):
+            e["id"] = s.id
+            e["kirchhoff_modes"] = list(s.modes)
+        if res.problem == "ik":
+            d["pose"] = [res.given[0], res.given[1], float(np.degrees(res.given[2]))]
+        else:
+            d["inputs"] = [float(leg.to_display(u)) for u, leg in zip(res.given, mech.legs)]
+        print(_dump(d))
+    else:
+        print(f"{mech.name}: {what}: {len(res)} Kirchhoff solution(s)"
+              + (" (stable ones)" if a.stable_only else ""))
+        print(_refine_table(res, ref))
+    if a.plot:
+        from .plot.refine import plot_refinement
+        from .plot.solutions import page_paths
+
+        figs = plot_refinement(res.solutions, ref, a.plot)
+        for f in page_paths(a.plot, len(figs)):
+            _written(f)
     return 0
 
 
@@ -443,7 +686,8 @@ _FIGURE_FORMATS = ("png", "pdf", "svg", "svgz", "jpg", "jpeg", "eps", "ps", "tif
 
 def _check_outputs(a) -> None:
     """Figure and data output paths are writable files of a known format, before any work."""
-    for opt, formats in (("plot", _FIGURE_FORMATS), ("curves", _FIGURE_FORMATS), ("save", ("npz",))):
+    for opt, formats in (("plot", _FIGURE_FORMATS), ("curves", _FIGURE_FORMATS), ("save", ("npz",)),
+                         ("shapes", ("csv", "npz"))):
         path = getattr(a, opt, None)
         if not path:
             continue
@@ -461,25 +705,34 @@ def _check_outputs(a) -> None:
             raise CLIError(f"flexkin: {flag} {path!r}: the directory {parent!r} is not writable")
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings as one line on stderr: ``flexkin: warning: <text>``."""
+    text = " ".join(str(message).split())
+    print(f"flexkin: warning: {text}", file=sys.stderr)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``flexkin`` command."""
-    import matplotlib
+    from .errors import FlexkinWarning
 
-    matplotlib.use("Agg")
+    os.environ.setdefault("MPLBACKEND", "Agg")  # figures are files; matplotlib is imported only to draw one
     parser = _build_parser()
-    try:
-        a = parser.parse_args(argv)
-        _check_outputs(a)
-        handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics, "fk": _cmd_kinematics,
-                   "path": _cmd_path, "workspace": _cmd_workspace, "reproduce": _cmd_reproduce,
-                   "study": _cmd_study, "explore": _cmd_explore}[a.command]
-        return handler(a)
-    except CLIError as e:
-        print(str(e), file=sys.stderr)
-        return EXIT_USAGE
-    except (ValueError, OSError) as e:  # library argument checks, unwritable figure path
-        print(f"flexkin: {e}", file=sys.stderr)
-        return EXIT_USAGE
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FlexkinWarning)
+        warnings.showwarning = _show_warning
+        try:
+            a = parser.parse_args(argv)
+            _check_outputs(a)
+            handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics, "fk": _cmd_kinematics,
+                       "path": _cmd_path, "workspace": _cmd_workspace, "reproduce": _cmd_reproduce,
+                       "study": _cmd_study, "explore": _cmd_explore, "refine": _cmd_refine}[a.command]
+            return handler(a)
+        except CLIError as e:
+            print(str(e), file=sys.stderr)
+            return EXIT_USAGE
+        except (ValueError, OSError) as e:  # library argument checks, unwritable figure path
+            print(f"flexkin: {e}", file=sys.stderr)
+            return EXIT_USAGE
 
 
 if __name__ == "__main__":  # pragma: no cover

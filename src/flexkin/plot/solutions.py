@@ -1,8 +1,15 @@
-"""All solutions of an IK/FK problem, one panel each (paper Figs. 10–16)."""
+"""All solutions of an IK/FK problem, one panel each (paper Figs. 10–16), split into pages.
+
+Panels carry the solutions' ids (:attr:`Solution.id`: the same number as in the table, the
+JSON and ``path --solution``), also when the result was filtered (``--stable-only``).  At most
+:data:`PANELS_PER_PAGE` panels go on one page; further pages are written beside the first one
+as ``name_2.png``, ``name_3.png``, ... (:func:`page_paths`).
+"""
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -10,52 +17,99 @@ import numpy as np
 from .mechanism import plot_mechanism
 from .style import mode_color, new_figure, save
 
-__all__ = ["plot_solutions"]
+__all__ = ["plot_solutions", "plot_solution_pages", "write_solution_pages", "page_paths", "PANELS_PER_PAGE"]
+
+#: most panels on one page (4 rows of 5: readable at 150 dpi)
+PANELS_PER_PAGE = 20
 
 
-def plot_solutions(result, path: str | None = None, max_panels: int = 48, ncols: int | None = None,
+def page_paths(path: str | Path, n_pages: int) -> list[Path]:
+    """File names of ``n_pages`` pages: ``path`` itself, then ``stem_2.ext``, ``stem_3.ext``, ..."""
+    p = Path(path)
+    return [p] + [p.with_name(f"{p.stem}_{k}{p.suffix}") for k in range(2, n_pages + 1)]
+
+
+def _what(result) -> str:
+    if result.problem == "ik":
+        g = result.given
+        return "pose (%.4g m, %.4g m, %.4g°)" % (g[0], g[1], np.degrees(g[2]))
+    units = [leg.input_unit for leg in result.mechanism.legs]
+    return "inputs (" + ", ".join(f"{v:.4g} {u}" for v, u in zip(_display_inputs(result), units)) + ")"
+
+
+def _ids(sols) -> str:
+    return f"#{sols[0].id}–#{sols[-1].id}" if len(sols) > 1 else f"#{sols[0].id}"
+
+
+def plot_solution_pages(result, per_page: int | None = None, ncols: int | None = None,
+                        zoom: bool = False) -> list[Any]:
+    """One Figure per page of at most ``per_page`` panels (default :data:`PANELS_PER_PAGE`; one page
+    for an empty result)."""
+    per_page = PANELS_PER_PAGE if per_page is None else int(per_page)
+    if per_page < 1:
+        raise ValueError(f"per_page must be >= 1, got {per_page!r}")
+    sols = list(result.solutions)
+    pages = [sols[k:k + per_page] for k in range(0, len(sols), per_page)] or [[]]
+    mech = result.mechanism
+    figs = []
+    for p, chunk in enumerate(pages, 1):
+        n = max(len(chunk), 1)
+        nc = ncols or min(n, 5)
+        nrows = math.ceil(n / nc)
+        fig = new_figure(figsize=(3.2 * nc, 3.2 * nrows + 0.6), layout="constrained")
+        axes = fig.subplots(nrows, nc, squeeze=False)
+        title = f"{mech.name}: {result.problem.upper()} at {_what(result)} — {len(sols)} solution(s)"
+        if len(pages) > 1:
+            title += f", page {p} of {len(pages)} ({_ids(chunk)})"
+        fig.suptitle(title, fontsize=10)
+        for idx, ax in enumerate(axes.flat):
+            if idx >= len(chunk):
+                ax.set_axis_off()
+                if not chunk and idx == 0:
+                    ax.text(0.5, 0.5, result.message or "no solution", ha="center", va="center", wrap=True,
+                            transform=ax.transAxes)
+                continue
+            s = chunk[idx]
+            rods = [r.shape(121) for r in s.rods]
+            plot_mechanism(mech, pose=s.pose, rods=rods, ax=ax, inputs=s.inputs)
+            st = " undecided" if s.stable is None else (" stable" if s.stable else " unstable")
+            ax.set_title(f"#{s.id}  modes {s.mode_label}{st}", fontsize=9, color=mode_color(s.mode_label))
+            ax.tick_params(labelsize=7)
+            ax.xaxis.label.set_size(8)
+            ax.yaxis.label.set_size(8)
+            if zoom:
+                pts = np.concatenate(rods)
+                c = pts.mean(0)
+                r = np.max(np.abs(pts - c)) * 1.1
+                ax.set_xlim(c[0] - r, c[0] + r)
+                ax.set_ylim(c[1] - r, c[1] + r)
+        figs.append(fig)
+    return figs
+
+
+def write_solution_pages(result, path: str | Path, per_page: int | None = None, **kwargs: Any) -> list[Path]:
+    """Draw every solution of ``result`` and save the pages (:func:`page_paths`); returns the files
+    written, first page first.  Stale further pages of an earlier, longer run are not removed."""
+    figs = plot_solution_pages(result, per_page=per_page, **kwargs)
+    files = page_paths(path, len(figs))
+    for fig, f in zip(figs, files):
+        save(fig, f)
+    return files
+
+
+def plot_solutions(result, path: str | None = None, per_page: int | None = None, ncols: int | None = None,
                    zoom: bool = False) -> Any:
     """Draw every solution of ``result`` (a :class:`~flexkin.results.KinematicsResult`).
 
-    Panels are numbered like ``result.table()`` and titled with the d-modes (coloured by
-    combination) and the stability verdict.  Returns the Figure; saves it if ``path``.
+    Panels are numbered with the solutions' ids, titled with the d-modes (coloured by
+    combination) and the stability verdict.  With ``path`` every page is saved
+    (:func:`write_solution_pages`).  Returns the Figure of the first page.
     """
-    sols = list(result.solutions)[:max_panels]
-    n = max(len(sols), 1)
-    ncols = ncols or min(n, 5)
-    nrows = math.ceil(n / ncols)
-    fig = new_figure(figsize=(3.2 * ncols, 3.2 * nrows + 0.6), layout="constrained")
-    axes = fig.subplots(nrows, ncols, squeeze=False)
-    mech = result.mechanism
-    what = ("pose (%.4g m, %.4g m, %.4g°)" % (result.given[0], result.given[1], np.degrees(result.given[2]))
-            if result.problem == "ik" else
-            "inputs (" + ", ".join(f"{v:.4g}" for v in _display_inputs(result)) + ")")
-    fig.suptitle(f"{mech.name}: {result.problem.upper()} at {what} — {len(result.solutions)} solution(s)"
-                 + ("" if len(result.solutions) <= max_panels else f", first {max_panels} shown"), fontsize=10)
-    for idx, ax in enumerate(axes.flat):
-        if idx >= len(sols):
-            ax.set_axis_off()
-            if not sols and idx == 0:
-                ax.text(0.5, 0.5, result.message or "no solution", ha="center", va="center", wrap=True,
-                        transform=ax.transAxes)
-            continue
-        s = sols[idx]
-        rods = [r.shape(121) for r in s.rods]
-        plot_mechanism(mech, pose=s.pose, rods=rods, ax=ax, inputs=s.inputs)
-        st = "" if s.stable is None else (" stable" if s.stable else " unstable")
-        ax.set_title(f"#{idx + 1}  modes {s.mode_label}{st}", fontsize=9, color=mode_color(s.mode_label))
-        ax.tick_params(labelsize=7)
-        ax.xaxis.label.set_size(8)
-        ax.yaxis.label.set_size(8)
-        if zoom:
-            pts = np.concatenate(rods)
-            c = pts.mean(0)
-            r = np.max(np.abs(pts - c)) * 1.1
-            ax.set_xlim(c[0] - r, c[0] + r)
-            ax.set_ylim(c[1] - r, c[1] + r)
+    figs = plot_solution_pages(result, per_page=per_page, ncols=ncols, zoom=zoom)
     if path:
-        save(fig, path)
-    return fig
+        for fig, f in zip(figs, page_paths(path, len(figs))):
+            save(fig, f)
+    return figs[0]
 
 
 def _display_inputs(result) -> list[float]:

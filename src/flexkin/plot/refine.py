@@ -1,0 +1,104 @@
+"""Kirchhoff solutions and their Cosserat refinements drawn over each other (``flexkin refine --plot``).
+
+One panel per Kirchhoff solution (numbered with its id): the Kirchhoff rods and platform in the
+leg colours, the refined rods (extension, shear, self-weight; :mod:`flexkin.cosserat`) dashed
+black over them, the refined platform outlined dashed; the title gives the outcome (refined:
+how far the platform moved; fold: the tau where the branch merged with another one).  Solutions
+born at folds (they exist only in the refined model) get panels of their own.  Pages of at most
+20 panels, as :func:`flexkin.plot.solutions.page_paths`.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from .mechanism import plot_mechanism
+from .solutions import PANELS_PER_PAGE, page_paths
+from .style import new_figure, save
+
+__all__ = ["plot_refinement", "refined_rod_shapes"]
+
+REFINED_STYLE = dict(color="k", lw=1.2, ls="--")
+
+
+def refined_rod_shapes(refined: Any, mech: Any, refine_result: Any, n_points: int = 121) -> list[np.ndarray]:
+    """World-frame centre lines ``(n_points, 2)`` of the three rods of a reached
+    :class:`~flexkin.cosserat.RefinedSolution` (integrated again from its clamps)."""
+    from ..cosserat import rod_shape
+
+    out = []
+    for i, r in enumerate(refined.rods):
+        p = refine_result.params[i]
+        shp = rod_shape(r.clamp, r.clamp_angle, r.length, mech.legs[i].rod.EI, r.base_force, r.base_moment,
+                        axial_compliance=p.axial_compliance, shear_compliance=p.shear_compliance,
+                        line_load=refine_result.line_loads[i], tau=1.0, n_points=n_points)
+        out.append(np.asarray(shp.points, dtype=float).reshape(n_points, 2))
+    return out
+
+
+def _outcome(r: Any) -> str:
+    if r.status in ("refined", "born", "unlisted") and r.reached:
+        st = "" if r.stable is None else (", stable" if r.stable else ", unstable")
+        if r.position_shift is not None:
+            return (f"{r.status}: moved {r.position_shift:.2g} m, {r.rotation_shift_deg:.2g}°{st}"
+                    if r.status == "refined" else f"{r.status}{st}")
+        return f"{r.status}{st}"
+    if r.status == "fold":
+        return f"fold at τ = {r.tau_end:.3g}: merged, gone"
+    return f"{r.status} at τ = {r.tau_end:.3g}"
+
+
+def plot_refinement(kirchhoff: Sequence[Any], refine_result: Any, path: str | Path | None = None,
+                    per_page: int = PANELS_PER_PAGE) -> list[Any]:
+    """Figures (pages) of the Kirchhoff solutions ``kirchhoff`` (the refined ones, in the order of
+    ``refine_result.solutions``) with their refinements; saves every page when ``path`` is
+    given (the files are ``page_paths(path, len(figs))``)."""
+    from matplotlib.patches import Polygon
+
+    mech = refine_result.mechanism
+    items: list[tuple[Any, Any]] = list(zip(kirchhoff, refine_result.solutions))
+    items += [(None, b) for b in refine_result.born if b.reached]
+    pages = [items[k:k + per_page] for k in range(0, len(items), per_page)] or [[]]
+    g = refine_result.gravity
+    head = (f"{mech.name}: Kirchhoff (colours) and Cosserat-refined (dashed black) equilibria"
+            + ("" if g is None else f", gravity ({g[0]:g}, {g[1]:g}) m/s²"))
+    figs = []
+    for p, chunk in enumerate(pages, 1):
+        n = max(len(chunk), 1)
+        nc = min(n, 5)
+        nrows = math.ceil(n / nc)
+        fig = new_figure(figsize=(3.2 * nc, 3.3 * nrows + 0.6), layout="constrained")
+        axes = fig.subplots(nrows, nc, squeeze=False)
+        fig.suptitle(head + (f" (page {p} of {len(pages)})" if len(pages) > 1 else ""), fontsize=10)
+        for idx, ax in enumerate(axes.flat):
+            if idx >= len(chunk):
+                ax.set_axis_off()
+                if not chunk and idx == 0:
+                    ax.text(0.5, 0.5, refine_result.message or "nothing to refine", ha="center", va="center",
+                            wrap=True, transform=ax.transAxes)
+                continue
+            k, r = chunk[idx]
+            if k is not None:
+                plot_mechanism(mech, pose=k.pose, rods=[rod.shape(121) for rod in k.rods], ax=ax, inputs=k.inputs)
+                label = f"#{k.id} {k.mode_label}"
+            else:
+                plot_mechanism(mech, pose=r.pose, ax=ax, inputs=r.inputs)
+                label = "born"
+            if r.reached and r.rods:
+                for xy in refined_rod_shapes(r, mech, refine_result):
+                    ax.plot(xy[:, 0], xy[:, 1], zorder=6, **REFINED_STYLE)
+                B = mech.platform.world(np.asarray(r.pose, dtype=float))
+                ax.add_patch(Polygon(B, closed=True, fill=False, ec="k", ls="--", lw=1.0, zorder=6))
+            ax.set_title(f"{label}: {_outcome(r)}", fontsize=8)
+            ax.tick_params(labelsize=7)
+            ax.xaxis.label.set_size(8)
+            ax.yaxis.label.set_size(8)
+        figs.append(fig)
+    if path is not None:
+        for fig, f in zip(figs, page_paths(path, len(figs))):
+            save(fig, f)
+    return figs
