@@ -11,13 +11,14 @@ force ``f`` on the tip by the platform is the constant internal force, paper Eqs
 
     x' = cos th,   y' = sin th,   th' = m,   m' = f_x sin th - f_y cos th,
 
-so that ``th'' = R sin(th - psi)`` (Eq. 8 with ``f = R (cos psi, sin psi)``).  From the tips
-of the integrated rods the check evaluates, all scaled to O(1) as in :mod:`flexkin.system`:
+so that ``th'' = R sin(th - psi)`` (Eq. 8 with ``f = R (cos psi, sin psi)``).  The check
+evaluates, all scaled to O(1) as in :mod:`flexkin.system`:
 
-* every tip lands on its platform point ``B_i = P + Rot(theta) b_i`` (``/ L_ref``);
-* a pinned tip carries no moment (``EI m(L) / L``, ``/ (F_ref L_ref)``); a clamped tip has
-  the tangent ``theta + tip_angle`` (rad), and its integrated tip moment enters the
-  platform's moment balance;
+* the integrated rod ends at the reported tip: position (``/ L_ref``), tangent (rad) and
+  moment (``/ (F_ref L_ref)``), see *Sensitivity* below;
+* every reported tip lies on its platform point ``B_i = P + Rot(theta) b_i`` (``/ L_ref``);
+* a pinned tip carries no moment; a clamped tip has the tangent ``theta + tip_angle``
+  (rad), and its tip moment enters the platform's moment balance;
 * the platform is in equilibrium with the load: ``sum n_i = F`` (``/ F_ref``) and
   ``sum (B_i - P) x n_i + sum m_i(L) = M_z`` (``/ (F_ref L_ref)``; Eq. 15, SPEC §2);
 * every rod's d-mode equals the inflection count of the integrated shape: 1 + the sign
@@ -30,13 +31,17 @@ A solution is ``verified`` when the largest of these scaled residuals is at most
 :data:`VERIFY_TOL` and its labels agree with its shape.  A solution that fails is still
 reported, with ``verified = False``.
 
-**Sensitivity.**  Shooting amplifies the rounding of the reported data along a rod by up to
-``exp(lambda L)`` (``lambda = sqrt(R / EI)``), which is enormous for rods under large
-tension.  Each rod is therefore integrated from both ends and matched at its middle:
-forward from the clamp with the reported ``(m0, n)``, backward from the tip with the reported
-tip point, tip tangent, tip moment and ``n``.  The mismatch at the middle (its position
-measured in ``L_ref``, its angle in rad, its moment in ``F_ref L_ref``) joins the residuals
-above; the amplification is then at most ``exp(lambda L / 2)`` per half.
+**Sensitivity.**  Shooting amplifies any perturbation of the data along a rod by up to
+``exp(lambda s)`` (``lambda = sqrt(R / EI)``; ``|d m'/d th| <= R``), which for the rods under
+large tension met in practice (``lambda L`` ~ 30: ``exp(30)`` ~ 1e13) would turn the rounding
+of an exact solution into a failed check.  Each rod is therefore shot in ``N = ceil(lambda L /
+3)`` equal segments (at least one): the first from the clamp with the reported base moment
+and tip force, each further one from the reported shape at its start (the closed-form
+profile, :func:`flexkin.rod.kernels.profile`), and every segment's end must meet the reported
+shape (the last one the reported tip point, tangent and moment).  The amplification is then
+at most ``exp(3)`` per segment; a rod with ``lambda L <= 3`` is shot in one piece.  The
+mismatches (position in ``L_ref``, tangent in rad, moment in ``F_ref L_ref``) join the
+residuals above.
 
 **Condition number.**  ``condition`` is the 2-norm condition number (ratio of the extreme
 singular values) of the square Newton matrix of the inverse kinematics, ``A_IK = [G_z G_rho]``
@@ -57,7 +62,7 @@ from scipy.integrate._ivp.dop853_coefficients import E3 as _E3, E5 as _E5
 
 from ..core.geometry2d import rotate, wrap_to_pi
 from ..core.jit import njit
-from ..cosserat._dop853 import A as _A, B as _B, C as _C, STAGES
+from ..cosserat._dop853 import A as _A, B as _B, STAGES
 from ..rod.closed_form import standard_chart
 from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, profile
 from ..system import System
@@ -162,13 +167,12 @@ def _dop853(y0, fx, fy, direction, span, rtol, atol, hmax, max_steps, y, mbuf):
 
 
 @njit(cache=True)
-def _sign_changes(ms, n, eps, step, sign) -> tuple:
-    """Sign changes of the entries ``ms[k]`` with ``|m| > eps`` (the others count as zero),
-    visited from ``k = 0`` (``step`` = 1) or from ``k = n - 1`` (``step`` = -1), continuing from
-    ``sign`` (0: none yet).  Returns (changes, last sign)."""
+def _sign_changes(ms, n, eps, sign) -> tuple:
+    """Sign changes of the entries of ``ms[:n]`` with ``|m| > eps`` (the others count as zero),
+    continuing from ``sign`` (0: none yet).  Returns (changes, last sign)."""
     changes = 0
     for j in range(n):
-        m = ms[j if step > 0 else n - 1 - j]
+        m = ms[j]
         if abs(m) <= eps:
             continue
         sg = 1 if m > 0.0 else -1
@@ -179,7 +183,7 @@ def _sign_changes(ms, n, eps, step, sign) -> tuple:
 
 
 @njit(cache=True)
-def integrate_rods(nodes, offsets, force, rtol, atol, hmax, max_steps, gap, counts, mmax):
+def _shoot_rods(nodes, offsets, force, rtol, atol, hmax, max_steps, gap, counts, mmax):
     """Multiple shooting of unit rods (module docstring), batched over rods.
 
     Rod ``r`` has the states ``nodes[offsets[r]:offsets[r + 1]]`` ``(x, y, th, m)`` at equally
@@ -219,7 +223,7 @@ def integrate_rods(nodes, offsets, force, rtol, atol, hmax, max_steps, gap, coun
         mx = 0.0
         for j in range(n_ms):
             mx = max(mx, abs(ms[j]))
-        counts[r], _ = _sign_changes(ms, n_ms, MOMENT_RTOL * mx, 1, 0)
+        counts[r], _ = _sign_changes(ms, n_ms, MOMENT_RTOL * mx, 0)
         mmax[r] = mx
 
 
@@ -332,7 +336,9 @@ def _interior_nodes(charts, z, offsets, nodes) -> None:
 
 
 def _segments(lam: NDArray) -> NDArray[np.int64]:
-    """Shooting segments per rod: ``lambda L / segments <= SEGMENT_GROWTH``."""
+    """Shooting segments per rod: ``lambda L / segments <= SEGMENT_GROWTH`` (one for a non-finite
+    force, whose integration then fails)."""
+    lam = np.where(np.isfinite(lam), lam, 0.0)
     return np.maximum(1, np.ceil(lam / SEGMENT_GROWTH)).astype(np.int64)
 
 
@@ -409,8 +415,8 @@ def verify_solutions(system: System, X: NDArray, charts: NDArray, load: NDArray,
     counts = np.empty(n * 3, np.int64)
     mmax = np.empty(n * 3)
     with np.errstate(all="ignore"):
-        integrate_rods(nodes, offsets, np.ascontiguousarray(force.reshape(-1, 2)), RTOL, ATOL, H_MAX, MAX_STEPS,
-                       gap, counts, mmax)
+        _shoot_rods(nodes, offsets, np.ascontiguousarray(force.reshape(-1, 2)), RTOL, ATOL, H_MAX, MAX_STEPS,
+                    gap, counts, mmax)
         counts = counts.reshape(n, 3)
         res = _residuals(system, X, load, w, L, gap.reshape(n, 3, 3))
         err = np.max(res, axis=1)
