@@ -62,6 +62,14 @@ and only reported by the tests.
 Coverage limits (documented, not hidden): the chart scan reaches ``Lambda <= Lambda_max`` (default
 40, i.e. R L^2/EI <= 1600) and Newton gives up beyond ``1.5 Lambda_max``; rods are searched with
 d-mode <= max_mode + 1.
+
+Rods CLAMPED to the platform (``leg.joint == "clamped"``, tip tangent ``theta + leg.tip_angle``;
+tip moment m(L) in the moment balance): mechanisms with a clamped leg are solved by
+``fk_clamped.fk_clamped`` (exact rods at the nodes of a pose lattice, seeded from the canonical
+chart of clamped rods and flood-filled over the lattice, linearised triples, Newton in the pose
+with the rods slaved, multiple-shooting refinement; search box R L^2/EI <= 450, clamped
+|turning| <= max_turn + 0.5) and verified by :func:`_verify_mixed` (clamped rods shot from both
+ends).  The pinned-only path is unchanged.
 """
 
 from __future__ import annotations
@@ -571,12 +579,18 @@ class FKOracleRod:
     EI: float
     mode: int  # 1 + inflection points strictly inside the rod (verify_fk)
     mode_ambiguous: bool  # the clamp is (nearly) at an inflection point: boundary case of the count
-    kprime: float  # k' = |sin((theta_L - psi) / 2)|, from the chart without cancellation
+    kprime: float  # k' = |sin((theta_L - psi) / 2)|, from the chart without cancellation (clamped: see fk_clamped)
     R_dimless: float  # R L^2/EI
+    tip_moment: float = 0.0  # m(L), the moment ON the rod tip BY the platform (N m); 0 for a pinned tip
+    turning: float = float("nan")  # theta(L) - theta(0) (rad), continuous
+    joint: str = "pinned"
+    k_value: float = float("nan")  # clamped rods: k from the first integral (> 1: non-inflectional)
 
     @property
     def k(self) -> float:
-        """|k| = |cos((theta_L - psi) / 2)|."""
+        """|k| = |cos((theta_L - psi) / 2)| (pinned); the first-integral k of a clamped rod."""
+        if np.isfinite(self.k_value):
+            return float(self.k_value)
         return float(np.sqrt(max(0.0, 1.0 - self.kprime**2)))
 
     @property
@@ -621,7 +635,7 @@ def _wrap(th):
 # ======================================================================================
 # verification of a solution (oracle's own or a flexkin solution): the 12 equations
 # ======================================================================================
-def verify_fk(mech, inputs, load, poses, forces, tip_angles, base_moments=None):
+def verify_fk(mech, inputs, load, poses, forces, tip_angles, base_moments=None, tip_moments=None):
     """Check candidate FK solutions on the 12 equations with a tight integration (DOP853, rtol =
     atol = 1e-13, batched, dimensionless).
 
@@ -651,8 +665,14 @@ def verify_fk(mech, inputs, load, poses, forces, tip_angles, base_moments=None):
     (A solution given by tip angles and forces in double precision defines ``v = theta_L - psi``
     only to ~1e-15 absolutely, i.e. to ~1e-15 / k' relatively near the separatrix; the residual
     inherits that floor, which stays below VERIFY_TOL for in-scope rods, k' >= 5e-7.)
+
+    Mechanisms with CLAMPED legs (tip tangent theta_P + tip_angle, tip moment ``m(L)`` applied ON
+    the rod BY the platform): see :func:`_verify_mixed`; ``base_moments`` are then required and
+    ``tip_moments`` (N, 3) are used when given (else derived by integrating from the clamp).
     """
     g = Geom.of(mech)
+    if g.any_clamped:
+        return _verify_mixed(g, inputs, load, poses, forces, tip_angles, base_moments, tip_moments)
     sys = FKSystem(g, inputs, np.asarray(load, float).reshape(3))
     poses = np.asarray(poses, float).reshape(-1, 3)
     N = len(poses)
@@ -702,14 +722,136 @@ def _verify_chart(sys: FKSystem, y, base_moments=None):
 
 def verify_solutions(mech, inputs, load, sols):
     """:func:`verify_fk` for solution objects with ``pose`` and ``rods`` (each rod with
-    ``tip_force``, ``tip_angle`` and ``base_moment``), e.g. flexkin's."""
+    ``tip_force``, ``tip_angle`` and ``base_moment``; for clamped legs ``tip_moment`` is used when
+    the rods report it), e.g. flexkin's."""
     sols = list(sols)
     if not sols:
         return []
+    tm = None
+    if Geom.of(mech).any_clamped and all(getattr(r, "tip_moment", None) is not None for s in sols for r in s.rods):
+        tm = [[r.tip_moment for r in s.rods] for s in sols]
     return verify_fk(mech, inputs, load, [s.pose for s in sols],
                      [[r.tip_force for r in s.rods] for s in sols],
                      [[r.tip_angle for r in s.rods] for s in sols],
-                     [[r.base_moment for r in s.rods] for s in sols])
+                     [[r.base_moment for r in s.rods] for s in sols], tip_moments=tm)
+
+
+def _verify_mixed(g: Geom, inputs, load, poses, forces, tip_angles, base_moments, tip_moments=None, n_eval=1001):
+    """:func:`verify_fk` for mechanisms with clamped legs.
+
+    Pinned rods: as in :func:`verify_fk` (shot from the pinned tip by :func:`shoot_from_tip`).
+    Clamped rods (need the reported base moment m0; the tip moment m(L) is the reported one, else
+    the one integrated from the clamp): shot from BOTH ends -- from the clamp with (n, m0) and from
+    the tip at B_i with the reported tip tangent and m(L) -- each over half the rod by DOP853 (rtol
+    1e-13); the mismatch at mid-length enters ``clamp_error`` (position / L_ref),
+    ``clamp_angle_error`` (mod 2 pi) and ``moment_mismatch`` (in units of the rod's moment scale
+    (1 + sqrt(R L^2/EI)) EI/L, the first-integral bound of its moment).  Two-sided shooting stays well
+    conditioned for taut rods (one-sided shooting amplifies errors like exp(Lambda)).  Also
+    ``tip_angle_error`` = max |wrap(theta_L - theta_P - tip_angle)| over clamped rods (their tip
+    condition).  The moment balance is ``sum (B_i - P) x n_i + sum_clamped m_i(L) = M_z``.
+    ``tip_shot`` is the max of these and the equilibrium errors; ``plain_shot`` the same equations
+    shot in one piece from the clamps (ill-conditioned for taut rods); per rod ``modes`` (1 + sign
+    changes of the moment strictly inside), ``mode_ambiguous``, ``kprime`` (clamped: from the first
+    integral, k' = sqrt|1 - k^2| for k <= 1, sqrt(1 - 1/k^2) beyond), ``base_moments``,
+    ``tip_moments``, ``turnings``."""
+    from ik_oracle import _mode_ambiguous, count_inflections, elastica_k
+
+    sys = FKSystem(g, inputs, np.asarray(load, float).reshape(3))
+    poses = np.asarray(poses, float).reshape(-1, 3)
+    N = len(poses)
+    if N == 0:
+        return []
+    f = np.asarray(forces, float).reshape(N, 3, 2)
+    ta = np.asarray(tip_angles, float).reshape(N, 3)
+    cl = g.clamped
+    if base_moments is None and np.any(cl):
+        raise ValueError("verify_fk: base moments are required for clamped legs")
+    m0 = np.zeros((N, 3)) if base_moments is None else np.asarray(base_moments, float).reshape(N, 3)
+    EI, L = g.EI[None], sys.L[None]
+    ax, ay = f[..., 0] * L**2 / EI, f[..., 1] * L**2 / EI
+    mt = m0 * L / EI
+    al = np.broadcast_to(sys.al[None], (N, 3))
+    Bp, arm = sys.platform_points(poses)
+    # one-piece forward shots (plain; also the tip moments if not reported)
+    yp = integrate_batch(ax, ay, mt, al, n_eval=2).reshape(4, N, 3, 2)[..., -1]
+    mL = yp[3] * EI / L if tip_moments is None else np.asarray(tip_moments, float).reshape(N, 3)
+    mL = np.where(cl[None], mL, 0.0)
+    clamp_err = np.zeros((N, 3)); ang_err = np.zeros((N, 3)); mom_mis = np.zeros((N, 3))
+    tip_ang = np.zeros((N, 3))
+    modes = np.ones((N, 3), np.int64); amb = np.zeros((N, 3), bool); kprime = np.ones((N, 3))
+    m0_out = m0.copy(); turn = np.zeros((N, 3))
+    pin = np.flatnonzero(~cl)
+    if len(pin):
+        y = chart_y(sys, f, ta, poses)
+        lam, t, psi = y[:, 3 * pin], y[:, 3 * pin + 1], y[:, 3 * pin + 2]
+        Z, n_in, bnd = shoot_from_tip(lam, t, psi)
+        Z = Z.reshape(4, N, len(pin))
+        clamp = Bp[:, pin] + sys.L[None, pin, None] * np.stack([Z[0], Z[1]], -1)
+        clamp_err[:, pin] = np.max(np.abs(clamp - sys.A[None, pin]), axis=-1) / g.L_ref
+        ang_err[:, pin] = np.abs(_wrap(Z[2] - np.pi - sys.al[None, pin]))
+        modes[:, pin] = 1 + n_in.reshape(N, len(pin))
+        amb[:, pin] = bnd.reshape(N, len(pin))
+        kprime[:, pin] = _kprime_of_t(t)
+        m0_out[:, pin] = -Z[3] * g.EI[None, pin] / sys.L[None, pin]
+        turn[:, pin] = ta[:, pin] - sys.al[None, pin]
+    for i in np.flatnonzero(cl):
+        Li, EIi = sys.L[i], g.EI[i]
+        yf = integrate_batch(ax[:, i] / 4, ay[:, i] / 4, mt[:, i] / 2, al[:, i], n_eval=n_eval)
+        yb = integrate_batch(-ax[:, i] / 4, -ay[:, i] / 4, -mL[:, i] * Li / EIi / 2, ta[:, i] + np.pi, n_eval=n_eval)
+        pf = sys.A[i][None] + 0.5 * Li * yf[:2, :, -1].T
+        pb = Bp[:, i] + 0.5 * Li * yb[:2, :, -1].T
+        clamp_err[:, i] = np.max(np.abs(pf - pb), axis=1) / g.L_ref
+        ang_err[:, i] = np.abs(_wrap(yf[2, :, -1] - (yb[2, :, -1] - np.pi)))
+        # (moment mismatch in units of the rod's moment scale (1 + sqrt(R L^2/EI)) EI/L)
+        mom_mis[:, i] = np.abs(2 * yf[3, :, -1] + 2 * yb[3, :, -1]) / (1.0 + np.hypot(ax[:, i], ay[:, i]) ** 0.5)
+        tip_ang[:, i] = np.abs(_wrap(ta[:, i] - poses[:, 2] - g.tip_angle[i]))
+        turn[:, i] = (yf[2, :, -1] - al[:, i]) + (ta[:, i] - (yb[2, :, -1] - np.pi))
+        ms_f = yf[3] * 2 * EIi / Li  # (N, n_eval) physical moments, clamp -> mid
+        ms_b = (-yb[3] * 2 * EIi / Li)[:, ::-1]  # mid -> tip
+        for j in range(N):
+            ms = np.concatenate([ms_f[j], ms_b[j, 1:]])
+            modes[j, i] = count_inflections(ms)
+            amb[j, i] = _mode_ambiguous(ms, clamped=True)
+            kk = elastica_k(ax[j, i], ay[j, i], ta[j, i], mL[j, i] * Li / EIi)
+            kprime[j, i] = np.sqrt(abs(1 - kk * kk)) if kk <= 1 else np.sqrt(1 - 1 / (kk * kk))
+    # equilibrium
+    Fsum = f.sum(axis=1) - sys.load[None, :2]
+    Msum = np.sum(arm[..., 0] * f[..., 1] - arm[..., 1] * f[..., 0], axis=1) + mL.sum(axis=1) - sys.load[2]
+    eqf = np.max(np.abs(Fsum), axis=1) / g.F_ref
+    eqm = np.abs(Msum) / (g.F_ref * g.L_ref)
+    # plain one-piece shots from the clamps
+    tipp = sys.A[None] + sys.L[None, :, None] * np.stack([yp[0], yp[1]], -1)
+    tip_err_p = np.max(np.abs(tipp - Bp), axis=-1) / g.L_ref
+    cond_p = np.where(cl[None], np.abs(_wrap(yp[2] - poses[:, 2:3] - g.tip_angle[None])), np.abs(yp[3]))
+    Mp = np.sum(arm[..., 0] * f[..., 1] - arm[..., 1] * f[..., 0], axis=1) + np.sum(
+        np.where(cl[None], yp[3] * EI / L, 0.0), axis=1) - sys.load[2]
+    out = []
+    for j in range(N):
+        d = {
+            "clamp_error": float(np.max(clamp_err[j])),
+            "clamp_angle_error": float(np.max(ang_err[j])),
+            "moment_mismatch": float(np.max(mom_mis[j])),
+            "tip_angle_error": float(np.max(tip_ang[j])),
+            "eq_force": float(eqf[j]),
+            "eq_moment": float(eqm[j]),
+            "plain_shot": float(max(np.max(tip_err_p[j]), np.max(cond_p[j]), eqf[j],
+                                    abs(Mp[j]) / (g.F_ref * g.L_ref))),
+            "base_moment_error": (float(np.max(np.where(cl, 0.0, np.abs(m0_out[j] - m0[j]) * sys.L / g.EI)))
+                                  if base_moments is not None else float("nan")),
+            "forward_tip_error": float(np.max(tip_err_p[j])),
+            "forward_tip_moment": float(np.max(np.where(cl, 0.0, np.abs(yp[3, j])))),
+            "modes": tuple(int(q) for q in modes[j]),
+            "mode_ambiguous": tuple(bool(b) for b in amb[j]),
+            "kprime": tuple(float(k) for k in kprime[j]),
+            "base_moments": tuple(float(v) for v in m0_out[j]),
+            "tip_moments": tuple(float(v) for v in mL[j]),
+            "turnings": tuple(float(v) for v in turn[j]),
+        }
+        d["tip_shot"] = max(d["clamp_error"], d["clamp_angle_error"], d["moment_mismatch"], d["tip_angle_error"],
+                            d["eq_force"], d["eq_moment"])
+        d["verified"] = bool(d["tip_shot"] <= VERIFY_TOL)
+        out.append(d)
+    return out
 
 
 def _build(sys: FKSystem, ts: TipSystem, Y) -> list[FKOracleSolution]:
@@ -1038,6 +1180,7 @@ class _Sheet:
                  n_levels: int = 8, ratio: float = 2.0):
         g = sys.g
         lam, t, tip, psi, _w0, mode = scan
+        self.W0 = np.asarray(_w0, float).ravel()  # dimensionless base moment per vertex (seeding only)
         L, EI, al, A = sys.L[i], g.EI[i], sys.al[i], sys.A[i]
         c, s = np.cos(al), np.sin(al)
         P = A + L * np.stack([c * tip[..., 0] - s * tip[..., 1], s * tip[..., 0] + c * tip[..., 1]], -1)
@@ -1398,7 +1541,8 @@ def _steps_for(y):
 
 def fk_multistart(mech, inputs, load=None, max_mode=2, *, n_random=1500, n_forward=1500, grid=(0.04, 72),
                   min_grid_poses=2000, max_grid_poses=20000, anchors=(400, 72, 0.97), s_max=2.0, keep_per=1,
-                  scan=(40.0, 320, 480), seed=0, chunk=1000, near=1e-3, return_all=False, stats=None):
+                  scan=(40.0, 320, 480), seed=0, chunk=1000, near=1e-3, return_all=False, stats=None,
+                  max_turn=None, clamped_grid=(0.08, 36), ms_segments=4):
     """All FK equilibria with every d-mode <= ``max_mode`` found by multi-start shooting.
 
     ``inputs`` SI (rad for revolute legs); ``load`` (Fx, Fy, Mz), default the mechanism's.
@@ -1423,6 +1567,13 @@ def fk_multistart(mech, inputs, load=None, max_mode=2, *, n_random=1500, n_forwa
     d-modes ``<= max_mode`` unless ``return_all``.  ``stats`` (dict) receives the counts of starts,
     Newton runs, CPU seconds, and ``rejected``: candidates with d-modes <= max_mode and no extreme
     rod whose verified residual stayed between VERIFY_TOL and 1e-6 (expected: none).
+
+    Mechanisms with CLAMPED legs are solved by ``fk_clamped.fk_clamped`` (exact rods located at
+    the poses of a ``clamped_grid = (h_xy, n_theta)`` grid plus ``n_random`` random poses,
+    linearised triples, Newton in the pose with the rods slaved, multiple-shooting refinement with
+    ``ms_segments`` segments per rod); only solutions whose clamped rods turn by at most
+    ``max_turn`` (default 2 pi max_mode) are kept, and every rod reports its ``tip_moment`` and
+    ``turning``.
     """
     import time
 
@@ -1431,6 +1582,12 @@ def fk_multistart(mech, inputs, load=None, max_mode=2, *, n_random=1500, n_forwa
     t_start = time.process_time()
     g = Geom.of(mech)
     load = np.asarray(mech.load if load is None else load, float)
+    if g.any_clamped:
+        from fk_clamped import fk_clamped
+
+        return fk_clamped(mech, inputs, load, max_mode=max_mode, max_turn=max_turn, K=ms_segments,
+                          grid=clamped_grid, n_random=n_random, s_max=s_max, seed=seed, return_all=return_all,
+                          stats=stats)
     sys = FKSystem(g, inputs, load)
     ts = TipSystem(sys)
     rng = np.random.default_rng(seed)

@@ -38,6 +38,18 @@ taut rods in tension) is flagged ``extreme``.
 Also here: :func:`verify_solution` / :func:`verify_many` (re-integration of reported
 solutions), :func:`tangents_many` (first-order load sensitivity) and :func:`continue_many`
 (predictor-corrector continuation in the load), all on the same independent equations.
+
+Rods CLAMPED to the platform (``getattr(leg, "joint", "pinned") == "clamped"``, tip tangent
+``theta_P + getattr(leg, "tip_angle", 0.0)``): the third equation of such a rod is its tip angle
+(modulo 2 pi) instead of a zero tip moment, and its tip moment ``m(L)`` (the moment ON the rod
+BY the platform) enters the platform's moment balance, ``sum (B_i - P) x n_i + sum m_i(L) =
+M_z``.  Mechanisms with a clamped leg are solved by ``leg_curves`` (every leg's solution curve
+traced by pseudo-arclength continuation from seeds of the canonical chart of clamped rods in
+``clamped_chart``, triples of curve points, Newton along the curves) in the multiple-shooting
+form of ``ms_shooting`` (well conditioned for taut rods), plus this module's random starts; every
+rod reports ``tip_moment``, ``turning`` = theta(L) - theta(0) and its d-mode (1 + sign changes of
+the moment strictly inside the rod); solutions are returned for every clamped rod with
+``|turning| <= max_turn`` (default 2 pi max_mode).  The pinned-only path is unchanged.
 """
 
 from __future__ import annotations
@@ -81,9 +93,31 @@ class Geom:
     attach: np.ndarray  # (3, 2)
     L_ref: float
     F_ref: float
+    #: platform joint per leg: "pinned" (zero tip moment) or "clamped" (tip tangent theta_P + tip_angle)
+    joint: tuple[str, str, str] = ("pinned", "pinned", "pinned")
+    #: tip tangent of clamped legs in the platform frame (rad); unused for pinned legs
+    tip_angle: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    @property
+    def clamped(self) -> np.ndarray:
+        """(3,) bool: which legs are welded to the platform."""
+        return np.array([j == "clamped" for j in self.joint])
+
+    @property
+    def any_clamped(self) -> bool:
+        return bool(np.any(self.clamped))
 
     @classmethod
     def of(cls, mech) -> Geom:
+        """Plain fields only: ``leg.actuation``, ``leg.origin``, ``leg.angle``, ``leg.rod.length``,
+        ``leg.rod.EI``, ``getattr(leg, "joint", "pinned")``, ``getattr(leg, "tip_angle", 0.0)`` (rad)
+        and ``mech.platform.attach``."""
+        joint = tuple(str(getattr(leg, "joint", "pinned") or "pinned") for leg in mech.legs)
+        for j in joint:
+            if j not in ("pinned", "clamped"):
+                raise ValueError(f"unknown platform joint {j!r}")
+        tip_angle = np.array([float(getattr(leg, "tip_angle", 0.0) or 0.0) if jt == "clamped" else 0.0
+                              for leg, jt in zip(mech.legs, joint)], float)
         kind = tuple(leg.actuation for leg in mech.legs)
         origin = np.array([leg.origin for leg in mech.legs], float)
         angle = np.array([leg.angle for leg in mech.legs], float)
@@ -96,7 +130,7 @@ class Geom:
                                for i in range(3)]))
         if fixed.size:
             L_ref = float(np.mean(fixed)) if fixed.size == 3 else L_ref
-        return cls(kind, origin, angle, length, EI, attach, L_ref, float(np.mean(EI)) / L_ref**2)
+        return cls(kind, origin, angle, length, EI, attach, L_ref, float(np.mean(EI)) / L_ref**2, joint, tip_angle)
 
     def u_scale(self) -> np.ndarray:
         return np.array([1.0 if k == "revolute" else self.L_ref for k in self.kind])
@@ -117,6 +151,11 @@ class Geom:
         c, s = np.cos(th), np.sin(th)
         b = self.attach
         return np.stack([x + c * b[:, 0] - s * b[:, 1], y + s * b[:, 0] + c * b[:, 1]], -1)
+
+
+def _wrap(th):
+    """Angle(s) wrapped to (-pi, pi]."""
+    return np.angle(np.exp(1j * np.asarray(th, float)))
 
 
 # ======================================================================================
@@ -170,8 +209,9 @@ class _System:
     """Residual and Jacobian of the 12 equations for a batch of scaled unknowns.
 
     Scaled unknowns: ``n / F_ref``, ``m0 / (F_ref L_ref)``, ``u / u_scale``.
-    Scaled equations: tip error / L_ref, tip moment L/EI, force error / F_ref,
-    moment error / (F_ref L_ref).
+    Scaled equations: tip error / L_ref, tip condition (pinned: tip moment L/EI; clamped: tip
+    angle error ``wrap(theta(L) - theta_P - tip_angle)`` in rad), force error / F_ref, moment error
+    / (F_ref L_ref) with the moment ``sum (B_i - P) x n_i + sum_clamped m_i(L)``.
     """
 
     def __init__(self, g: Geom, pose, load):
@@ -181,6 +221,9 @@ class _System:
         self.B = g.platform_points(pose)
         self.arm = self.B - self.pose[:2]
         self.us = g.u_scale()
+        self.cl = g.clamped  # (3,) bool
+        self.any_cl = bool(np.any(self.cl))
+        self.tip_th = float(self.pose[2]) + g.tip_angle  # world tip tangent of clamped legs (mod 2 pi)
 
     def physical(self, z):
         g = self.g
@@ -189,6 +232,16 @@ class _System:
         n[..., 2] *= g.F_ref * g.L_ref
         u = z[:, 9:12] * self.us
         return n, u
+
+    def rk4(self, ax, ay, mt, th0, n_steps):
+        """Batch RK4 of unit rods: ``n_steps`` steps for all (pinned-only mechanisms, unchanged), or,
+        when a leg is clamped, at least ``n_steps`` and more for rods of large force or moment
+        (:func:`clamped_chart.steps_for`, numba kernel)."""
+        if not self.any_cl:
+            return _rk4_unit(ax, ay, mt, th0, n_steps)
+        from clamped_chart import rk4_rods, steps_for
+
+        return rk4_rods(ax, ay, mt, th0, steps_for(ax, ay, mt, n_min=n_steps))
 
     def rod_params(self, z):
         """Per rod arrays: A (N,3,2), alpha, L, ax, ay, mt (N,3)."""
@@ -207,25 +260,18 @@ class _System:
         g = self.g
         N = len(z)
         n, _u, A, al, L, ax, ay, mt = self.rod_params(z)
-        Z, S, ch = _rk4_unit(ax.ravel(), ay.ravel(), mt.ravel(), al.ravel(), n_steps)
+        Z, S, ch = self.rk4(ax.ravel(), ay.ravel(), mt.ravel(), al.ravel(), n_steps)
         Z = Z.reshape(4, N, 3)
         S = S.reshape(4, 4, N, 3)
         ch = ch.reshape(N, 3)
-        r = np.empty((N, 12))
-        tip = A + L[..., None] * np.stack([Z[0], Z[1]], -1)
-        rr = np.empty((N, 3, 3))
-        rr[..., :2] = (tip - self.B[None]) / g.L_ref
-        rr[..., 2] = Z[3]
-        r[:, 0:9] = rr.reshape(N, 9)
-        r[:, 9:11] = (n[..., :2].sum(axis=1) - self.load[:2]) / g.F_ref
-        mom = np.sum(self.arm[None, :, 0] * n[..., 1] - self.arm[None, :, 1] * n[..., 0], axis=1)
-        r[:, 11] = (mom - self.load[2]) / (g.F_ref * g.L_ref)
+        r = self._assemble(n, A, L, Z[0], Z[1], Z[2], Z[3])
         if not jac:
             return r, ch
         Jm = np.zeros((N, 12, 12))
         EI = g.EI[None]
-        # d(out)/d(ax, ay, mt, th0) with out = (x, y, m) of the unit rod
-        d_out = np.stack([S[:, 0], S[:, 1], S[:, 3]], axis=1)  # (4 params, 3 outs, N, 3)
+        # d(out)/d(ax, ay, mt, th0) with out = (x, y, m) of the unit rod (x, y, theta if clamped)
+        third = np.where(self.cl[None, None, :], S[:, 2], S[:, 3]) if self.any_cl else S[:, 3]
+        d_out = np.stack([S[:, 0], S[:, 1], third], axis=1)  # (4 params, 3 outs, N, 3)
         for i in range(3):
             Li = L[:, i]
             rows = slice(3 * i, 3 * i + 3)
@@ -255,7 +301,36 @@ class _System:
             Jm[:, 10, 3 * i + 1] = 1.0
             Jm[:, 11, 3 * i] = -self.arm[i, 1] / g.L_ref
             Jm[:, 11, 3 * i + 1] = self.arm[i, 0] / g.L_ref
+            if self.cl[i]:
+                # the tip moment m(L) = Z3 EI / L enters the moment balance
+                cm = EI[0, i] / Li / (g.F_ref * g.L_ref)
+                S3 = S[:, 3, :, i]  # d Z3 / d(ax, ay, mt, th0)  (4, N)
+                Jm[:, 11, 3 * i] += S3[0] * dp_dnx * cm
+                Jm[:, 11, 3 * i + 1] += S3[1] * dp_dnx * cm
+                Jm[:, 11, 3 * i + 2] += S3[2] * dp_dm0 * cm
+                if k == "revolute":
+                    Jm[:, 11, 9 + i] += S3[3] * cm * us
+                elif k == "length":
+                    dZ3 = S3[0] * dp[0] + S3[1] * dp[1] + S3[2] * dp[2]
+                    Jm[:, 11, 9 + i] += (dZ3 * cm - Z[3, :, i] * cm / Li) * us
         return r, Jm, ch
+
+    def _assemble(self, n, A, L, X, Y, TH, M):
+        """Residual (N, 12) from the unit rods' tip states X, Y, TH, M (N, 3)."""
+        g = self.g
+        N = len(n)
+        r = np.empty((N, 12))
+        tip = A + L[..., None] * np.stack([X, Y], -1)
+        rr = np.empty((N, 3, 3))
+        rr[..., :2] = (tip - self.B[None]) / g.L_ref
+        rr[..., 2] = np.where(self.cl[None], _wrap(TH - self.tip_th[None]), M) if self.any_cl else M
+        r[:, 0:9] = rr.reshape(N, 9)
+        r[:, 9:11] = (n[..., :2].sum(axis=1) - self.load[:2]) / g.F_ref
+        mom = np.sum(self.arm[None, :, 0] * n[..., 1] - self.arm[None, :, 1] * n[..., 0], axis=1)
+        if self.any_cl:
+            mom = mom + np.sum(np.where(self.cl[None], M * g.EI[None] / L, 0.0), axis=1)
+        r[:, 11] = (mom - self.load[2]) / (g.F_ref * g.L_ref)
+        return r
 
 
 def _newton(sys: _System, z, n_iter=40, n_steps=200, tol=1e-10):
@@ -369,17 +444,20 @@ def count_inflections(ms, rel_tol=1e-9) -> int:
     return 1 + int(np.count_nonzero(sg[1:] != sg[:-1]))
 
 
-def _mode_ambiguous(ms, rel=1e-6) -> bool:
+def _mode_ambiguous(ms, rel=1e-6, clamped=False) -> bool:
     """Whether the d-mode of a sampled rod is a boundary case: a zero of the moment at the clamp
-    (the rod sits between modes q and q + 1), a nearly vanishing moment slope at the pinned tip,
-    or an interior near-tangency of the moment to zero (a near-zero sample whose neighbours have
-    the same sign).  Clean interior zero crossings are not ambiguous."""
+    (the rod sits between modes q and q + 1), a nearly vanishing moment slope at the pinned tip
+    (for a clamped tip: a nearly vanishing tip moment, an inflection at the tip), or an interior
+    near-tangency of the moment to zero (a near-zero sample whose neighbours have the same sign).
+    Clean interior zero crossings are not ambiguous."""
     ms = np.asarray(ms, float)
     scale = float(np.max(np.abs(ms)))
     if scale == 0.0:
         return True
     tiny = rel * scale
     if abs(ms[0]) < tiny or abs(ms[-2]) < tiny:
+        return True
+    if clamped and abs(ms[-1]) < tiny:
         return True
     j = np.flatnonzero(np.abs(ms[1:-2]) < tiny) + 1
     return bool(np.any(np.sign(ms[j - 1]) * np.sign(ms[j + 1]) > 0))
@@ -394,16 +472,7 @@ def _tight_residual(sys: _System, z):
     N = len(z)
     n, _u, A, al, L, ax, ay, mt = sys.rod_params(z)
     y = integrate_batch(ax, ay, mt, al)[..., -1].reshape(4, N, 3)
-    r = np.empty((N, 12))
-    rr = np.empty((N, 3, 3))
-    tip = A + L[..., None] * np.stack([y[0], y[1]], -1)
-    rr[..., :2] = (tip - sys.B[None]) / sys.g.L_ref
-    rr[..., 2] = y[3]
-    r[:, :9] = rr.reshape(N, 9)
-    r[:, 9:11] = (n[..., :2].sum(axis=1) - sys.load[:2]) / sys.g.F_ref
-    mom = np.sum(sys.arm[None, :, 0] * n[..., 1] - sys.arm[None, :, 1] * n[..., 0], axis=1)
-    r[:, 11] = (mom - sys.load[2]) / (sys.g.F_ref * sys.g.L_ref)
-    return r
+    return sys._assemble(n, A, L, y[0], y[1], y[2], y[3])
 
 
 def _polish(sys: _System, Z, n_iter=6, tol=1e-11):
@@ -446,10 +515,19 @@ class OracleRod:
     clamp_angle: float
     length: float
     EI: float
-    mode: int
+    mode: int  # 1 + sign changes of the moment strictly inside (0, L) (pinned and clamped tips)
     mode_ambiguous: bool
-    k: float  # |k| = |cos((theta_L - psi)/2)|
+    k: float  # elastica modulus from the first integral (pinned tip: |cos((theta_L - psi)/2)|; > 1: orbiting)
     R_dimless: float  # R L^2/EI
+    tip_moment: float = 0.0  # m(L) = moment ON the rod tip BY the platform (N m); 0 for a pinned tip
+    turning: float = float("nan")  # theta(L) - theta(0) (rad), continuous
+    tip_angle: float = float("nan")  # theta(L), world, continuous (rad)
+    joint: str = "pinned"
+
+    @property
+    def extreme(self) -> bool:
+        """Near the separatrix (|k| within 1e-7 of 1): the rods flexkin treats as out of scope."""
+        return bool(abs(abs(self.k) - 1.0) < 1e-7)
 
 
 @dataclass(frozen=True)
@@ -458,6 +536,7 @@ class OracleSolution:
     rods: tuple[OracleRod, OracleRod, OracleRod]
     residual: float
     z: np.ndarray = field(repr=False)
+    pose: np.ndarray | None = None  # the IK pose (x, y, theta) (m, m, rad)
 
     @property
     def modes(self) -> tuple[int, int, int]:
@@ -473,7 +552,15 @@ class OracleSolution:
 
     @property
     def extreme(self) -> bool:
-        return any(abs(r.k) > 1 - 1e-7 for r in self.rods)
+        return any(r.extreme for r in self.rods)
+
+    @property
+    def turnings(self) -> tuple[float, float, float]:
+        return tuple(r.turning for r in self.rods)
+
+    @property
+    def tip_moments(self) -> np.ndarray:
+        return np.array([r.tip_moment for r in self.rods])
 
 
 def _build_many(sys: _System, Z, res) -> list[OracleSolution]:
@@ -489,15 +576,36 @@ def _build_many(sys: _System, Z, res) -> list[OracleSolution]:
         rods = []
         for i in range(3):
             ms = y[3, j, i]
-            psi = np.arctan2(n[j, i, 1], n[j, i, 0])
-            kk = abs(np.cos(0.5 * (y[2, j, i, -1] - psi)))
+            cl = bool(sys.cl[i])
+            if cl:
+                kk = elastica_k(ax[j, i], ay[j, i], y[2, j, i, -1], y[3, j, i, -1])
+            else:
+                psi = np.arctan2(n[j, i, 1], n[j, i, 0])
+                kk = abs(np.cos(0.5 * (y[2, j, i, -1] - psi)))
             rods.append(OracleRod(tip_force=n[j, i, :2].copy(), base_moment=float(n[j, i, 2]),
                                   clamp=A[j, i].copy(), clamp_angle=float(al[j, i]), length=float(L[j, i]),
                                   EI=float(sys.g.EI[i]), mode=count_inflections(ms),
-                                  mode_ambiguous=_mode_ambiguous(ms), k=float(kk),
-                                  R_dimless=float(np.hypot(ax[j, i], ay[j, i]))))
-        out.append(OracleSolution(inputs=u[j].copy(), rods=tuple(rods), residual=float(res[j]), z=Z[j].copy()))
+                                  mode_ambiguous=_mode_ambiguous(ms, clamped=cl), k=float(kk),
+                                  R_dimless=float(np.hypot(ax[j, i], ay[j, i])),
+                                  tip_moment=float(ms[-1] * sys.g.EI[i] / L[j, i]) if cl else 0.0,
+                                  turning=float(y[2, j, i, -1] - al[j, i]), tip_angle=float(y[2, j, i, -1]),
+                                  joint=sys.g.joint[i]))
+        out.append(OracleSolution(inputs=u[j].copy(), rods=tuple(rods), residual=float(res[j]), z=Z[j].copy(),
+                                  pose=sys.pose.copy()))
     return out
+
+
+def elastica_k(ax, ay, theta, m):
+    """Modulus k of a unit rod's elastica from the first integral at any point (theta, m):
+    ``m^2/2 + R cos(theta - psi) = C`` and ``k^2 = (C + R) / (2 R) = m^2 / (4 R) + cos^2((theta - psi)/2)``
+    (``k < 1``: inflectional; ``k > 1``: non-inflectional, the tangent turns monotonically; inf if
+    the force vanishes and m does not)."""
+    R = float(np.hypot(ax, ay))
+    psi = float(np.arctan2(ay, ax))
+    c2 = np.cos(0.5 * (float(theta) - psi)) ** 2
+    if R == 0.0:
+        return float("inf") if m != 0 else 0.0
+    return float(np.sqrt(float(m) ** 2 / (4.0 * R) + c2))
 
 
 def _key(sys: _System, z):
@@ -517,7 +625,19 @@ def _dedupe_rows(keys, tol):
     return chosen
 
 
-def _random_starts(sys: _System, n, rng, R_range=(0.05, 300.0)):
+def _clamped_m0(Rd, rng, max_turn):
+    """Dimensionless base moments ``m0 L/EI`` for random starts of clamped rods: half inside the
+    first-integral bound ``|m0| <= 2 sqrt(R)`` (inflectional rods), half beyond it up to
+    ``2 sqrt(R) + max_turn`` (non-inflectional, "orbiting" rods, whose tangent turns by about
+    ``m0`` when the force is small), both signs."""
+    n = len(Rd)
+    b = 2.0 * np.sqrt(Rd)
+    orb = rng.uniform(size=n) < 0.5
+    mag = np.where(orb, b + rng.uniform(0.0, 1.0, n) * (max_turn + 1.0), b * rng.uniform(0.0, 1.0, n))
+    return np.where(rng.uniform(size=n) < 0.5, -mag, mag)
+
+
+def _random_starts(sys: _System, n, rng, R_range=(0.05, 300.0), max_turn=4 * np.pi):
     g = sys.g
     z = np.empty((n, 12))
     u = np.empty((n, 3))
@@ -538,6 +658,8 @@ def _random_starts(sys: _System, n, rng, R_range=(0.05, 300.0)):
         Rd = np.exp(rng.uniform(np.log(R_range[0]), np.log(R_range[1]), n))
         ang = rng.uniform(0.0, 2 * np.pi, n)
         m0d = 2.0 * np.sqrt(Rd) * rng.uniform(-1.0, 1.0, n)
+        if sys.cl[i]:
+            m0d = _clamped_m0(Rd, rng, max_turn)
         R = Rd * g.EI[i] / L**2
         z[:, 3 * i] = R * np.cos(ang) / g.F_ref
         z[:, 3 * i + 1] = R * np.sin(ang) / g.F_ref
@@ -557,6 +679,8 @@ def _phase_a(sys: _System, z, n_iter=15, n_steps=64):
     p = np.stack([ax.ravel(), ay.ravel(), mt.ravel()], 1)
     th0 = al.ravel()
     tgt = ((sys.B[None] - A) / L[..., None]).reshape(-1, 2)
+    clm = np.tile(sys.cl, N)  # clamped rod? (flattened like p)
+    tth = np.tile(sys.tip_th, N)
     ok = np.zeros(len(p), bool)
     active = np.ones(len(p), bool)
     for it in range(n_iter + 1):
@@ -564,13 +688,14 @@ def _phase_a(sys: _System, z, n_iter=15, n_steps=64):
         if idx.size == 0:
             break
         Z, S, _ = _rk4_unit(p[idx, 0], p[idx, 1], p[idx, 2], th0[idx], n_steps)
-        r = np.stack([Z[0] - tgt[idx, 0], Z[1] - tgt[idx, 1], Z[3]], 1)
+        c_ = clm[idx]
+        r = np.stack([Z[0] - tgt[idx, 0], Z[1] - tgt[idx, 1], np.where(c_, _wrap(Z[2] - tth[idx]), Z[3])], 1)
         done = np.max(np.abs(r), axis=1) < 1e-8
         ok[idx[done]] = True
         if it == n_iter:
             break
-        J = np.stack([S[0:3, 0], S[0:3, 1], S[0:3, 3]], 1)  # (params, outs, M) -> want (M, outs, params)
-        J = np.moveaxis(J, -1, 0).transpose(0, 2, 1)
+        J = np.stack([S[0:3, 0], S[0:3, 1], np.where(c_[None], S[0:3, 2], S[0:3, 3])], 1)  # (params, outs, M)
+        J = np.moveaxis(J, -1, 0).transpose(0, 2, 1)  # (M, outs, params)
         with np.errstate(all="ignore"):
             det = np.linalg.det(J)
             good = np.isfinite(det) & (np.abs(det) > 1e-14)
@@ -579,7 +704,7 @@ def _phase_a(sys: _System, z, n_iter=15, n_steps=64):
             step[good] = -np.linalg.solve(J[good], r[good][..., None])[..., 0]
         Rd = np.hypot(p[idx, 0], p[idx, 1])
         lim = np.maximum(np.hypot(step[:, 0], step[:, 1]) / (0.5 * Rd + 3.0),
-                         np.abs(step[:, 2]) / (0.5 * np.sqrt(Rd) + 1.0))
+                         np.abs(step[:, 2]) / (0.5 * np.sqrt(Rd) + 1.0 + np.where(c_, 0.25 * np.abs(p[idx, 2]), 0.0)))
         step *= (1.0 / np.maximum(lim, 1.0))[:, None]
         upd = ~done & good
         p[idx[upd]] += step[upd]
@@ -786,7 +911,7 @@ def _chart_to_leg_grid(sys: _System, i: int, tip):
     return (np.where(X * np.cos(beta) + Y * np.sin(beta) > 1e-3, C, np.nan),)
 
 
-def _triple_starts(sys: _System, samples, max_cands, k_near=4, s_max=1.0, close_frac=0.0):
+def _triple_starts(sys: _System, samples, max_cands, k_near=4, s_max=1.0, close_frac=0.0, return_s=False):
     """Candidate triples of leg samples nearly in platform equilibrium, one per cluster.
 
     Each sample carries its scaled wrench ``W`` and the wrench change per chart cell along its
@@ -836,9 +961,9 @@ def _triple_starts(sys: _System, samples, max_cands, k_near=4, s_max=1.0, close_
             rel = dd / (Sp[0][A1] + Sp[1][A2] + Sp[2][A3])
             score = np.minimum(sm, rel / close_frac) if close_frac > 0 else sm
             sel = score <= s_max
-            picks.append(np.column_stack([A1[sel], A2[sel], A3[sel], score[sel]]))
+            picks.append(np.column_stack([A1[sel], A2[sel], A3[sel], score[sel], s0[sel], s1[sel], s2[sel]]))
     if not picks:
-        return np.zeros((0, 3), int)
+        return (np.zeros((0, 3), int), np.zeros((0, 3))) if return_s else np.zeros((0, 3), int)
     P = np.concatenate(picks)
     if len(P) > max_cands:
         P = P[np.argpartition(P[:, 3], max_cands)[:max_cands]]
@@ -846,10 +971,15 @@ def _triple_starts(sys: _System, samples, max_cands, k_near=4, s_max=1.0, close_
     Pi = P[:, :3].astype(int)
     cells = np.column_stack([samples[i]["cell"][Pi[:, i]] // 3 for i in range(3)])
     _, first = np.unique(cells, axis=0, return_index=True)
-    return Pi[np.sort(first)]
+    first = np.sort(first)
+    if return_s:
+        return Pi[first], P[first, 4:7]
+    return Pi[first]
 
 
-def _triple_z(sys: _System, samples, P):
+def _triple_z(sys: _System, samples, P, s=None):
+    """Starts from index triples ``P``; with the linear coefficients ``s`` (M, 3) the samples that
+    carry their tangent (``dz``: change of (q, u) per sample step, clamped legs) are moved along it."""
     g = sys.g
     z = np.empty((len(P), 12))
     for i in range(3):
@@ -859,12 +989,16 @@ def _triple_z(sys: _System, samples, P):
         z[:, 3 * i + 1] = n[:, 1] / g.F_ref
         z[:, 3 * i + 2] = m0 / (g.F_ref * g.L_ref)
         z[:, 9 + i] = u / sys.us[i]
+        if s is not None and "dz" in samples[i]:
+            dz = samples[i]["dz"][j] * np.clip(s[:, i], -2.0, 2.0)[:, None]
+            z[:, 3 * i:3 * i + 3] += dz[:, :3]
+            z[:, 9 + i] += dz[:, 3]
     return z
 
 
 def oracle_ik(mech, pose, load=None, max_mode=2, n_starts=2000, seed=0, batch=2000, n_steps=64,
               R_range=(0.05, 300.0), return_all=False, extra_starts=None, scan=(240, 480),
-              max_triples=6000, s_max=5.0, k_near=2, stats=None):
+              max_triples=6000, s_max=5.0, k_near=2, stats=None, max_turn=None, ms_segments=4):
     """All IK equilibria with every d-mode <= ``max_mode`` found by multi-start shooting.
 
     Two families of starts for a damped batch Newton on the 12 equations (RK4, ``n_steps``):
@@ -883,15 +1017,33 @@ def oracle_ik(mech, pose, load=None, max_mode=2, n_starts=2000, seed=0, batch=20
     with DOP853 (rtol 1e-13); the d-mode of each rod is counted on the tight integration.
     Returns a list of :class:`OracleSolution` sorted by (modes, inputs).  ``extra_starts``
     (SI: list of (forces (3, 2), base moments (3,), inputs (3,))) are appended.
+
+    Clamped legs (``leg.joint == "clamped"``, tip tangent ``theta + leg.tip_angle``): the tip
+    condition of such a rod is its tip angle (mod 2 pi) instead of a zero tip moment, and its tip
+    moment enters the platform's moment balance.  Every configuration is a distinct solution (rods
+    whose tangents turn by an extra 2 pi are different states ``(n, m0)``); each rod reports its
+    ``tip_moment``, ``turning`` = theta(L) - theta(0) and d-mode (1 + interior sign changes of the
+    moment).  A clamped rod may be non-inflectional (tangent turning monotonically, ``k > 1``), so
+    its d-mode does not bound its turning: solutions are kept when every clamped rod has
+    ``|turning| <= max_turn`` (default ``2 pi max_mode``; all if ``return_all``), and the random
+    starts of clamped rods include base moments beyond the inflectional bound, up to
+    ``2 sqrt(R L^2/EI) + max_turn`` (:func:`_clamped_m0`).  Instead of the triple starts, such a
+    mechanism is solved by tracing every leg's solution curve (``leg_curves.solve_clamped``:
+    chart-seeded pseudo-arclength continuation, triples of curve points, Newton along the curves,
+    at most ``max_triples`` starts) and every candidate is refined, polished and built in the
+    multiple-shooting form of ``ms_shooting`` (``ms_segments`` segments per rod), which stays well
+    conditioned for taut rods (nearly straight under high tension, ``|k - 1|`` exponentially small).
     """
     g = Geom.of(mech)
     load = np.asarray(mech.load if load is None else load, float)
     sys = _System(g, pose, load)
     rng = np.random.default_rng(seed)
+    max_turn = 2 * np.pi * max_mode if max_turn is None else float(max_turn)
+    turn_cap = max_turn + np.pi  # candidates (before polishing) may exceed the bound a little
     parts = []
     info = {}
     if n_starts:
-        starts = _random_starts(sys, n_starts, rng, R_range)
+        starts = _random_starts(sys, n_starts, rng, R_range, max_turn)
         starts, ok = _phase_a(sys, starts)
         parts.append(starts[ok])
         info["random_after_projection"] = int(np.count_nonzero(ok))
@@ -903,11 +1055,23 @@ def oracle_ik(mech, pose, load=None, max_mode=2, n_starts=2000, seed=0, batch=20
     for b0 in range(0, len(starts), batch):
         z, rn, modes = _newton(sys, starts[b0:b0 + batch], n_iter=20, n_steps=n_steps, tol=1e-9)
         ok = (rn < 1e-9) & np.all(modes <= max_mode + 1, axis=1)
+        if sys.any_cl and np.any(ok):
+            ok[ok] &= _turn_ok(sys, z[ok], turn_cap, n_steps)
         n_conv += int(np.count_nonzero(rn < 1e-9))
         found.extend(z[ok])
     if found:
         F_ = np.array(found)
         found = list(F_[_dedupe_rows(_key(sys, F_), 1e-6)])
+    if sys.any_cl:
+        from leg_curves import solve_clamped
+
+        info["converged"] = n_conv
+        out = solve_clamped(sys, found, R_range, max_mode, max_turn, return_all, max_triples, s_max, k_near, info,
+                            K=ms_segments)
+        info["unique"] = len(out)
+        if stats is not None:
+            stats.update(info)
+        return out
     if max_triples:
         samples = [_leg_samples(sys, i, R_range, max_mode, *scan) for i in range(3)]
         info["leg_samples"] = [len(s_["u"]) for s_ in samples]
@@ -932,7 +1096,8 @@ def oracle_ik(mech, pose, load=None, max_mode=2, n_starts=2000, seed=0, batch=20
         Zp, rn = _polish(sys, Z)
         good = rn <= 1e-9
         for s in _build_many(sys, Zp[good], rn[good]):
-            if return_all or all(q <= max_mode for q in s.modes):
+            if return_all or (all(q <= max_mode for q in s.modes)
+                              and all(abs(r.turning) <= max_turn for r in s.rods if r.joint == "clamped")):
                 out.append(s)
         keys = np.array([_key(sys, s.z) for s in out]).reshape(-1, 12)
         out = [out[i] for i in _dedupe_rows(keys, 1e-7)]
@@ -941,6 +1106,14 @@ def oracle_ik(mech, pose, load=None, max_mode=2, n_starts=2000, seed=0, batch=20
     if stats is not None:
         stats.update(info)
     return out
+
+
+def _turn_ok(sys: _System, z, cap, n_steps=64):
+    """Mask of candidates whose clamped rods all turn by at most ``cap`` (RK4 estimate)."""
+    _n, _u, _A, al, _L, ax, ay, mt = sys.rod_params(z)
+    Z, _S, _ = _rk4_unit(ax.ravel(), ay.ravel(), mt.ravel(), al.ravel(), n_steps)
+    turn = np.abs(Z[2].reshape(-1, 3) - al)
+    return np.all(~sys.cl[None] | (turn <= cap), axis=1)
 
 
 def to_z(sys_or_mech, forces, moments, inputs, pose=None, load=None):
@@ -969,16 +1142,28 @@ def by_modes(sols) -> dict[str, int]:
 def verify_solution(mech, sol, load=None, pose=None) -> dict:
     """Re-integrate every rod of ``sol`` from its clamp with its reported tip force and base moment.
 
-    ``sol`` needs ``pose``, ``inputs`` and ``rods`` (each with ``tip_force`` and ``base_moment``).
-    The clamp is rebuilt from the inputs by SPEC §2 (not taken from the solution).  Each rod is
-    integrated with solve_ivp (DOP853, rtol = atol = 1e-13, dimensionless).
+    ``sol`` needs ``pose``, ``inputs`` and ``rods`` (each with ``tip_force`` and ``base_moment``;
+    rods of clamped legs may report ``tip_moment``).  The clamp is rebuilt from the inputs by SPEC
+    §2 (not taken from the solution).  Each rod is integrated with solve_ivp (DOP853, rtol = atol =
+    1e-13, dimensionless).
 
-    Returns a dict: ``tip_error`` (max distance tip - B_i, m), ``tip_moment`` (max |m(L)| L/EI),
+    Returns a dict: ``tip_error`` (max distance tip - B_i, m), ``tip_moment`` (max |m(L)| L/EI over
+    the PINNED rods, their tip condition; 0 if none), ``tip_angle_error`` (max |theta(L) - theta_P
+    - tip_angle| (mod 2 pi, rad) over the CLAMPED rods, their tip condition; 0 if none),
     ``eq_force`` / ``eq_moment`` (equilibrium errors relative to the largest force term |n_i|,
-    |F|, resp. the largest moment-term magnitude |B_i - P| |n_i|, |M|), ``eq_abs`` (absolute errors scaled by EI/L^2 and EI/L),
-    ``modes`` (inflection counts), ``mode_ambiguous`` (per rod: a zero of the moment at the
-    clamp or a near-tangency, where the count is a boundary case) and ``clamp_error``
-    (reported clamp / clamp angle / length vs SPEC §2, when the rods report them).
+    |F|, resp. the largest moment-term magnitude |B_i - P| |n_i|, |m_i(L)|, |M|; the moment
+    balance is ``sum (B_i - P) x n_i + sum_clamped m_i(L) = M_z`` with the reported tip moments, or
+    the integrated ones when not reported), ``eq_abs`` (absolute errors scaled by EI/L^2 and EI/L),
+    ``modes`` (1 + sign changes of the moment strictly inside each rod), ``mode_ambiguous`` (per
+    rod: a zero of the moment at the clamp, at a clamped tip, or a near-tangency, where the count is
+    a boundary case), ``clamp_error`` (reported clamp / clamp angle / length vs SPEC §2, when the
+    rods report them), per rod ``tip_moments`` (integrated m(L), N m) and ``turnings`` (theta(L) -
+    theta(0)), ``tip_moment_error`` (max |reported - integrated tip moment| L/EI over clamped rods
+    that report one; 0 if none) and ``midpoint_mismatch``: clamped rods reporting a tip moment are
+    also shot from BOTH ends (from the clamp with (n, m0), from the tip at B_i with tangent theta_P +
+    tip_angle and the reported tip moment, each over half the rod) and compared at mid-length
+    (max of |dx|/L, |dtheta| mod 2 pi, |dm| L/EI / (1 + sqrt(R L^2/EI))): well conditioned also for taut rods, whose
+    one-sided residuals are amplified like exp(Lambda) (NaN if no rod qualifies).
     """
     return verify_many(mech, [sol], load, pose)[0]
 
@@ -992,9 +1177,11 @@ def verify_many(mech, sols, load=None, pose=None) -> list[dict]:
     if not sols:
         return []
     N = len(sols)
+    cl = g.clamped
     ax, ay, mt, th0 = (np.empty((N, 3)) for _ in range(4))
     A_all, L_all = np.empty((N, 3, 2)), np.empty((N, 3))
     clamp_err = np.zeros(N)
+    rep_mL = np.full((N, 3), np.nan)
     for j, sol in enumerate(sols):
         for i, rod in enumerate(sol.rods):
             A, al, L = g.clamp(i, np.asarray(sol.inputs[i], float))
@@ -1011,13 +1198,18 @@ def verify_many(mech, sols, load=None, pose=None) -> list[dict]:
             mt[j, i] = float(rod.base_moment) * L / g.EI[i]
             th0[j, i] = al
             A_all[j, i], L_all[j, i] = A, L
+            if cl[i] and getattr(rod, "tip_moment", None) is not None:
+                rep_mL[j, i] = float(rod.tip_moment)
     y = integrate_batch(ax, ay, mt, th0, n_eval=2001).reshape(4, N, 3, 2001)
+    mid = _midpoint_mismatch(g, sols, pose, ax, ay, mt, th0, A_all, L_all, rep_mL) if np.any(
+        np.isfinite(rep_mL)) else np.full(N, np.nan)
     out = []
     for j, sol in enumerate(sols):
         ps = np.asarray(sol.pose if pose is None else pose, float)
         B = g.platform_points(ps)
         arm = B - ps[:2]
         tip = A_all[j] + L_all[j][:, None] * np.stack([y[0, j, :, -1], y[1, j, :, -1]], -1)
+        mL_int = y[3, j, :, -1] * g.EI / L_all[j]  # integrated tip moments (N m)
         F = np.zeros(2)
         Mz = 0.0
         fterms = [float(np.hypot(*load[:2]))]
@@ -1029,18 +1221,61 @@ def verify_many(mech, sols, load=None, pose=None) -> list[dict]:
             Mz += t
             fterms.append(float(np.hypot(*n)))
             mterms.append(float(np.hypot(*arm[i])) * float(np.hypot(*n)))  # |arm| |n| bounds |arm x n|
+            if cl[i]:
+                m_i = rep_mL[j, i] if np.isfinite(rep_mL[j, i]) else mL_int[i]
+                Mz += m_i
+                mterms.append(abs(float(m_i)))
         ef = float(np.hypot(*(F - load[:2])))
         em = abs(Mz - load[2])
+        tip_m = [abs(y[3, j, i, -1]) for i in range(3) if not cl[i]]
+        tip_a = [abs(float(_wrap(y[2, j, i, -1] - ps[2] - g.tip_angle[i]))) for i in range(3) if cl[i]]
+        mle = [abs(rep_mL[j, i] - mL_int[i]) * L_all[j, i] / g.EI[i] for i in range(3)
+               if cl[i] and np.isfinite(rep_mL[j, i])]
         out.append({
             "tip_error": float(np.max(np.hypot(*(tip - B).T))),
-            "tip_moment": float(np.max(np.abs(y[3, j, :, -1]))),
+            "tip_moment": float(max(tip_m)) if tip_m else 0.0,
+            "tip_angle_error": float(max(tip_a)) if tip_a else 0.0,
             "eq_force": ef / max(max(fterms), 1e-300),
             "eq_moment": em / max(max(mterms), 1e-300),
             "eq_abs": max(ef / g.F_ref, em / (g.F_ref * g.L_ref)),
             "modes": tuple(count_inflections(y[3, j, i]) for i in range(3)),
-            "mode_ambiguous": tuple(_mode_ambiguous(y[3, j, i]) for i in range(3)),
+            "mode_ambiguous": tuple(_mode_ambiguous(y[3, j, i], clamped=bool(cl[i])) for i in range(3)),
             "clamp_error": float(clamp_err[j]),
+            "tip_moments": tuple(float(v) for v in mL_int),
+            "turnings": tuple(float(y[2, j, i, -1] - th0[j, i]) for i in range(3)),
+            "tip_moment_error": float(max(mle)) if mle else 0.0,
+            "midpoint_mismatch": float(mid[j]),
         })
+    return out
+
+
+def _midpoint_mismatch(g: Geom, sols, pose, ax, ay, mt, th0, A_all, L_all, rep_mL):
+    """Two-sided shooting of the clamped rods that report a tip moment (see :func:`verify_solution`):
+    max over those rods of the scaled state mismatch at mid-length (NaN for solutions without one)."""
+    N = len(sols)
+    jj, ii = np.nonzero(np.isfinite(rep_mL))
+    # forward half from the clamp: a unit rod of length L/2 (force scaled by 1/4, moment by 1/2)
+    yf = integrate_batch(ax[jj, ii] / 4, ay[jj, ii] / 4, mt[jj, ii] / 2, th0[jj, ii])[..., -1]
+    # backward half from the tip: the reversed rod (force -n, tangent + pi, moment -m)
+    Bt = np.empty((len(jj), 2))
+    tht = np.empty(len(jj))
+    for k, (j, i) in enumerate(zip(jj, ii)):
+        ps = np.asarray(sols[j].pose if pose is None else pose, float)
+        Bt[k] = g.platform_points(ps)[i]
+        tht[k] = ps[2] + g.tip_angle[i]
+    Lh = L_all[jj, ii]
+    mLd = rep_mL[jj, ii] * Lh / g.EI[ii]
+    yb = integrate_batch(-ax[jj, ii] / 4, -ay[jj, ii] / 4, -mLd / 2, tht + np.pi)[..., -1]
+    pf = A_all[jj, ii] + 0.5 * Lh[:, None] * yf[:2].T
+    pb = Bt + 0.5 * Lh[:, None] * yb[:2].T
+    dpos = np.hypot(*(pf - pb).T) / Lh
+    dth = np.abs(_wrap(yf[2] - (yb[2] - np.pi)))
+    # dimensionless m L/EI (unit-half moment x 2), in units of the rod's moment scale 1 + sqrt(R L^2/EI)
+    dm = np.abs(yf[3] * 2 - (-yb[3] * 2)) / (1.0 + np.hypot(ax[jj, ii], ay[jj, ii]) ** 0.5)
+    mis = np.maximum(np.maximum(dpos, dth), dm)
+    out = np.full(N, np.nan)
+    for k, j in enumerate(jj):
+        out[j] = mis[k] if not np.isfinite(out[j]) else max(out[j], mis[k])
     return out
 
 

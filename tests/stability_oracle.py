@@ -15,7 +15,17 @@ angle at the segment midpoint s_j = (j - 1/2) h.  Then
     energy   E = EI/(2h) [ 2 (theta_1 - alpha)^2 + sum_{j>=2} (theta_j - theta_{j-1})^2 ]
 
 The clamp term is the half-cell difference (theta_1 - alpha)/(h/2) over the length h/2 (a
-ghost-point Dirichlet condition); the pinned tip is a natural (Neumann) end with no term.
+ghost-point Dirichlet condition); the pinned tip is a natural (Neumann) end with no term.  A
+CLAMPED tip (rod welded to the platform, or a single rod whose tip tangent is prescribed) gets the
+same half-cell Dirichlet term at the tip,
+
+    E_tip = EI/(2h) * 2 (theta_tip - theta_N)^2,   theta_tip = theta_p + beta_i  (mechanism)
+                                                   or a fixed angle           (single rod),
+
+with beta_i = tip_angle_i + 2 pi k_i (k_i from the continuous solution: rods whose tangent turns
+by an extra 2 pi are other configurations).  So the perturbation obeys eta_i(L) = delta theta_p,
+the tip moment is m_i(L) = 2 EI (theta_tip - theta_N)/h (the moment ON the rod tip BY the
+platform) and the platform's rotational equilibrium gets -sum_i m_i(L).
 Both ends are second-order: eigenvalues, tip forces and poses converge like h^2, which is
 checked (N and 2N) and used for a Richardson extrapolation of the smallest eigenvalue.
 
@@ -30,7 +40,8 @@ so that the total force on the tip of rod i is n_i = F_i + G_i^T lambda (SPEC §
 force ON the rod tip).  Cases:
 
 * mechanism: q = pose (x, y, theta_p), U = -F.P - M theta_p, g_i = r_i - P - Rot(theta_p) b_i
-  (lambda_i = n_i, the rod tip forces);
+  (lambda_i = n_i, the rod tip forces); clamped legs add their tip terms E_tip (coupling their
+  last angle to theta_p);
 * single rod, tip ``free`` under a dead load (no constraint), on a straight ``slider`` (one
   constraint d.(r - r0) = 0, d normal to the line; dead load, tip rotation free), or
   ``pinned`` at a point (two constraints, the tip force is a reaction).
@@ -94,12 +105,16 @@ DEFAULT_N = 200
 # ======================================================================================
 @dataclass(frozen=True)
 class RodSpec:
-    """One rod: clamp point (m), clamp tangent angle (rad), free length (m), EI (N m^2)."""
+    """One rod: clamp point (m), clamp tangent angle (rad), free length (m), EI (N m^2); for a
+    mechanism leg also its platform joint ("pinned" | "clamped") and, if clamped, its tip tangent
+    in the platform frame (rad)."""
 
     clamp: tuple[float, float]
     clamp_angle: float
     length: float
     EI: float
+    joint: str = "pinned"
+    tip_angle: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -115,6 +130,7 @@ class Tip:
     load: tuple[float, float] = (0.0, 0.0)
     point: tuple[float, float] | None = None
     direction: tuple[float, float] | None = None
+    angle: float | None = None  # prescribed tip tangent (world, rad): a clamped tip; None: rotation free
 
     @staticmethod
     def free(load) -> Tip:
@@ -130,6 +146,18 @@ class Tip:
     @staticmethod
     def pinned(point, load=(0.0, 0.0)) -> Tip:
         return Tip("pinned", (float(load[0]), float(load[1])), (float(point[0]), float(point[1])))
+
+    @staticmethod
+    def clamped(point, angle, load=(0.0, 0.0)) -> Tip:
+        """Tip at ``point`` with its tangent prescribed (``angle``, world, rad): a clamped-clamped rod."""
+        return Tip("pinned", (float(load[0]), float(load[1])), (float(point[0]), float(point[1])), None, float(angle))
+
+    @staticmethod
+    def guided(point, direction, angle, load=(0.0, 0.0)) -> Tip:
+        """Tip on the line through ``point`` along ``direction`` with its tangent prescribed
+        (``angle``): e.g. a clamped-clamped column loaded axially (the tip slides along the axis)."""
+        t = Tip.slider(point, direction, load)
+        return Tip("slider", t.load, t.point, t.direction, float(angle))
 
     # constraint rows G (m, 2) and constant part c0 (m,): g = G r + c0
     def rows(self) -> tuple[np.ndarray, np.ndarray]:
@@ -171,6 +199,7 @@ class DiscreteEquilibrium:
     iterations: int
     converged: bool
     base_moments: np.ndarray  # (R,) discrete EI theta'(0) = 2 EI (theta_1 - alpha)/h
+    tip_moments: np.ndarray | None = None  # (R,) clamped tips: 2 EI (theta_tip - theta_N)/h; 0 otherwise
 
 
 @dataclass
@@ -242,7 +271,11 @@ class _Problem:
 
     def __init__(self, rods: Sequence[RodSpec], Ns: Sequence[int], dead: np.ndarray, G: np.ndarray,
                  nq: int, c, dc, hc, U, gU, hU, q_mass: np.ndarray, L_ref: float, EI_ref: float,
-                 q_res_scale=None, q_step_scale=None):
+                 q_res_scale=None, q_step_scale=None, tip_targets=None, tip_q: int | None = None):
+        """``tip_targets``: per rod None (tip rotation free) or the constant c_i of a clamped tip
+        theta_tip = c_i (+ q[tip_q] when ``tip_q`` is given: the platform rotation)."""
+        self.tip_targets = [None] * len(rods) if tip_targets is None else list(tip_targets)
+        self.tip_q = tip_q
         self.rods = list(rods)
         self.Ns = [int(n) for n in Ns]
         self.h = np.array([r.length / n for r, n in zip(self.rods, self.Ns)])
@@ -279,14 +312,44 @@ class _Problem:
         _, q = self.split(z)
         return np.einsum("imk,ik->m", self.G, self.tips(z)) + self.c(q)
 
+    def tip_theta(self, i, q):
+        """Prescribed tip tangent of rod i (None if its tip rotation is free)."""
+        c = self.tip_targets[i]
+        if c is None:
+            return None
+        return float(c) + (float(q[self.tip_q]) if self.tip_q is not None else 0.0)
+
     def potential(self, z):
         """V = sum E_i - sum F_i . r_i + U(q) (J)."""
         th, q = self.split(z)
         V = 0.0
-        for rod, h, t in zip(self.rods, self.h, th):
+        for i, (rod, h, t) in enumerate(zip(self.rods, self.h, th)):
             V += rod.EI / (2.0 * h) * (2.0 * (t[0] - rod.clamp_angle) ** 2 + float(np.sum(np.diff(t) ** 2)))
+            tt = self.tip_theta(i, q)
+            if tt is not None:
+                V += rod.EI / (2.0 * h) * 2.0 * (tt - t[-1]) ** 2
         V -= float(np.sum(self.dead * self.tips(z)))
         return V + (float(self.U(q)) if self.nq else 0.0)
+
+    def tip_moments(self, z):
+        """Discrete tip moments 2 EI (theta_tip - theta_N)/h (0 for free tip rotation)."""
+        th, q = self.split(z)
+        out = np.zeros(len(self.rods))
+        for i, (rod, h, t) in enumerate(zip(self.rods, self.h, th)):
+            tt = self.tip_theta(i, q)
+            if tt is not None:
+                out[i] = 2.0 * rod.EI * (tt - t[-1]) / h
+        return out
+
+    def couplings(self):
+        """Per rod the Hessian block (N_i, nq) coupling its angles to q (clamped tips tied to q)."""
+        out = []
+        for i, (rod, h, n) in enumerate(zip(self.rods, self.h, self.Ns)):
+            C = np.zeros((n, self.nq))
+            if self.tip_targets[i] is not None and self.tip_q is not None:
+                C[-1, self.tip_q] = -2.0 * rod.EI / h
+            out.append(C)
+        return out
 
     def jac_rods(self, z):
         """Per rod A_i (m, N_i) = G_i d r_i / d theta_i; and A_q (m, nq)."""
@@ -304,6 +367,7 @@ class _Problem:
         th, q = self.split(z)
         n_tip = self.tip_forces(lam)
         g = np.zeros(self.n)
+        gq_tip = np.zeros(self.nq)
         for i, (rod, h, t) in enumerate(zip(self.rods, self.h, th)):
             k = rod.EI / h
             d = np.diff(t)
@@ -311,10 +375,15 @@ class _Problem:
             gi[0] += 2.0 * k * (t[0] - rod.clamp_angle)
             gi[1:] += k * d
             gi[:-1] -= k * d
+            tt = self.tip_theta(i, q)
+            if tt is not None:
+                gi[-1] += 2.0 * k * (t[-1] - tt)
+                if self.tip_q is not None:
+                    gq_tip[self.tip_q] -= 2.0 * k * (t[-1] - tt)
             gi -= h * (-n_tip[i, 0] * np.sin(t) + n_tip[i, 1] * np.cos(t))
             g[self.off[i]:self.off[i + 1]] = gi
         if self.nq:
-            g[self.nt:] = self.gU(q) - self.dc(q).T @ lam
+            g[self.nt:] = self.gU(q) - self.dc(q).T @ lam + gq_tip
         return g
 
     def rod_blocks(self, z, lam, sigma=0.0):
@@ -329,6 +398,8 @@ class _Problem:
             diag[0] = 3.0 * k if N > 1 else 2.0 * k
             if N > 1:
                 diag[-1] = k
+            if self.tip_targets[i] is not None:
+                diag[-1] += 2.0 * k  # half-cell Dirichlet term at a clamped tip
             diag += h * (n_tip[i, 0] * np.cos(t) + n_tip[i, 1] * np.sin(t))
             diag -= sigma * self.e_scale * h / self.L_ref
             out.append((diag, np.full(N - 1, -k)))
@@ -338,7 +409,12 @@ class _Problem:
         _, q = self.split(z)
         if not self.nq:
             return np.zeros((0, 0))
-        return self.hU(q) - self.hc(q, lam) - sigma * self.e_scale * np.diag(self.q_mass)
+        H = self.hU(q) - self.hc(q, lam) - sigma * self.e_scale * np.diag(self.q_mass)
+        if self.tip_q is not None:
+            for i, (rod, h) in enumerate(zip(self.rods, self.h)):
+                if self.tip_targets[i] is not None:
+                    H[self.tip_q, self.tip_q] += 2.0 * rod.EI / h
+        return H
 
     def mass_diag(self):
         D = np.empty(self.n)
@@ -353,12 +429,16 @@ class _Problem:
             sl = slice(self.off[i], self.off[i + 1])
             H[sl, sl] = np.diag(d) + np.diag(e, 1) + np.diag(e, -1)
         H[self.nt:, self.nt:] = self.q_block(z, lam)
+        for i, C in enumerate(self.couplings()):
+            sl = slice(self.off[i], self.off[i + 1])
+            H[sl, self.nt:] = C
+            H[self.nt:, sl] = C.T
         return H
 
     # ---- structured KKT factorisation ----------------------------------------------------
     def kkt(self, z, lam, sigma=0.0) -> _KKT:
         A, Aq = self.jac_rods(z)
-        return _KKT(self.rod_blocks(z, lam, sigma), A, Aq, self.q_block(z, lam, sigma))
+        return _KKT(self.rod_blocks(z, lam, sigma), A, Aq, self.q_block(z, lam, sigma), self.couplings())
 
     def count_below(self, z, lam, sigma) -> int:
         """Number of constrained eigenvalues (units e_scale) below sigma."""
@@ -445,7 +525,8 @@ class _Problem:
         base = np.array([2.0 * r.EI * (t[0] - r.clamp_angle) / h for r, h, t in zip(self.rods, self.h, th)])
         return DiscreteEquilibrium(N=self.Ns[0], thetas=[t.copy() for t in th], q=q.copy(), lam=lam.copy(),
                                    tip_forces=self.tip_forces(lam), tips=self.tips(z), residual=res,
-                                   iterations=it, converged=converged, base_moments=base)
+                                   iterations=it, converged=converged, base_moments=base,
+                                   tip_moments=self.tip_moments(z))
 
 
 def _tridiag_neg(d, e) -> int:
@@ -465,11 +546,12 @@ def _tridiag_neg(d, e) -> int:
 class _KKT:
     """Factorisation of [[T, C], [C^T, K_bb]] with T = blockdiag(tridiagonal rod blocks).
 
-    Unknown order (theta_rods, q, lambda); C_i = [0, -A_i^T] couples rod i to lambda;
-    K_bb = [[H_qq, -A_q^T], [-A_q, 0]].
+    Unknown order (theta_rods, q, lambda); C_i = [H_iq, -A_i^T] couples rod i to q (through a
+    clamped tip tied to the platform rotation; else zero) and lambda; K_bb = [[H_qq, -A_q^T],
+    [-A_q, 0]].
     """
 
-    def __init__(self, blocks, A, Aq, Hqq):
+    def __init__(self, blocks, A, Aq, Hqq, couplings=None):
         self.blocks = blocks
         self.A = A
         nq = Hqq.shape[0]
@@ -483,8 +565,11 @@ class _KKT:
         self.n_neg = 0
         self.X = []  # T_i^{-1} C_i
         self.ab = []
+        self.C = []
         S = Kbb.copy()
-        for (d, e), Ai in zip(blocks, A):
+        if couplings is None:
+            couplings = [np.zeros((len(d), nq)) for d, _ in blocks]
+        for (d, e), Ai, Hiq in zip(blocks, A, couplings):
             N = len(d)
             ab = np.zeros((3, N))
             ab[0, 1:] = e
@@ -493,7 +578,9 @@ class _KKT:
             self.ab.append(ab)
             self.n_neg += _tridiag_neg(d, e)
             Ci = np.zeros((N, nb))
+            Ci[:, :nq] = Hiq
             Ci[:, nq:] = -Ai.T
+            self.C.append(Ci)
             Xi = solve_banded((1, 1), ab, Ci) if nb else np.zeros((N, 0))
             self.X.append(Xi)
             S -= Ci.T @ Xi
@@ -509,12 +596,10 @@ class _KKT:
         rb = np.concatenate([r_z[nt:], r_lam])
         Y = []
         o = 0
-        for ab, Xi, Ai in zip(self.ab, self.X, self.A):
+        for ab, Ci in zip(self.ab, self.C):
             N = ab.shape[1]
             yi = solve_banded((1, 1), ab, r_t[o:o + N])
             Y.append(yi)
-            Ci = np.zeros((N, nq + m))
-            Ci[:, nq:] = -Ai.T
             rb = rb - Ci.T @ yi
             o += N
         xb = np.linalg.solve(self.S, rb) if nq + m else np.zeros(0)
@@ -561,7 +646,8 @@ def _rot(a):
     return np.array([[c, -s], [s, c]])
 
 
-def _mechanism_problem(rods: Sequence[RodSpec], attach, load, N: int) -> _Problem:
+def _mechanism_problem(rods: Sequence[RodSpec], attach, load, N: int, tip_targets=None) -> _Problem:
+    """``tip_targets``: per rod None (pinned) or beta_i (clamped: theta_tip = theta_p + beta_i)."""
     b = np.asarray(attach, float).reshape(3, 2)
     F = np.asarray(load, float).reshape(3)
     R = len(rods)
@@ -605,25 +691,37 @@ def _mechanism_problem(rods: Sequence[RodSpec], attach, load, N: int) -> _Proble
     fs = EI_ref / L_ref**2
     return _Problem(rods, [N] * R, np.zeros((R, 2)), G, 3, c, dc, hc, U, gU, hU,
                     q_mass=np.array([1.0 / L_ref**2, 1.0 / L_ref**2, 1.0]), L_ref=L_ref, EI_ref=EI_ref,
-                    q_res_scale=np.array([fs, fs, fs * L_ref]), q_step_scale=np.array([L_ref, L_ref, 1.0]))
+                    q_res_scale=np.array([fs, fs, fs * L_ref]), q_step_scale=np.array([L_ref, L_ref, 1.0]),
+                    tip_targets=tip_targets, tip_q=2)
 
 
 def mechanism_stability(rods: Sequence[RodSpec], attach, pose, load, tip_forces, base_moments,
                         N: int = 2 * DEFAULT_N, n_low: int = 1, method: str = "banded") -> StabilityResult:
     """Stability of a mechanism equilibrium with the actuators locked.
 
-    rods: three :class:`RodSpec` (clamps as locked by the actuators); attach: (3, 2) b_i in the
-    platform frame; pose (x, y, theta rad); load (F_x, F_y, M_z) at P; tip_forces (3, 2) force ON
-    each rod tip (world, N); base_moments (3,) EI theta'(0) (N m).  The continuous solution
-    (pose, n_i, m0_i) is sampled at the segment midpoints and Newton-solved as a DISCRETE
-    equilibrium (pose free) at N/2 and N segments per rod; see :class:`StabilityResult`.
+    rods: three :class:`RodSpec` (clamps as locked by the actuators; ``joint``/``tip_angle`` for
+    rods welded to the platform); attach: (3, 2) b_i in the platform frame; pose (x, y, theta rad);
+    load (F_x, F_y, M_z) at P; tip_forces (3, 2) force ON each rod tip (world, N); base_moments (3,)
+    EI theta'(0) (N m).  The continuous solution (pose, n_i, m0_i) is sampled at the segment
+    midpoints and Newton-solved as a DISCRETE equilibrium (pose free) at N/2 and N segments per rod;
+    see :class:`StabilityResult`.  A clamped rod's tip tangent is tied to the platform rotation,
+    theta_i(L) = theta_p + tip_angle_i + 2 pi k_i, the integer k_i taken from the continuous
+    solution (its integrated tip tangent): the perturbations obey eta_i(L) = delta theta_p.
     """
     tip_forces = np.asarray(tip_forces, float).reshape(3, 2)
     base_moments = np.asarray(base_moments, float).reshape(3)
     pose = np.asarray(pose, float).reshape(3)
+    targets = []
+    for i, r in enumerate(rods):
+        if getattr(r, "joint", "pinned") == "clamped":
+            thL = sample_rod(r, tip_forces[i], base_moments[i], 8)[2]
+            k = round((thL - pose[2] - r.tip_angle) / (2 * math.pi))
+            targets.append(float(r.tip_angle + 2 * math.pi * k))
+        else:
+            targets.append(None)
 
     def build(n):
-        prob = _mechanism_problem(rods, attach, load, n)
+        prob = _mechanism_problem(rods, attach, load, n, tip_targets=targets)
         th = [sample_rod(r, tip_forces[i], base_moments[i], n)[0] for i, r in enumerate(rods)]
         return prob, prob.pack(th, pose), tip_forces.ravel().copy()
 
@@ -638,12 +736,18 @@ def mechanism_rods(mech, inputs) -> list[RodSpec]:
     rods = []
     for i in range(3):
         A, al, L = g.clamp(i, np.asarray(float(inputs[i])))
-        rods.append(RodSpec((float(A[0]), float(A[1])), float(al), float(L), float(g.EI[i])))
+        rods.append(RodSpec((float(A[0]), float(A[1])), float(al), float(L), float(g.EI[i]), g.joint[i],
+                            float(g.tip_angle[i])))
     return rods
 
 
-def solution_stability(mech, sol, load, N: int = 2 * DEFAULT_N, **kw) -> StabilityResult:
-    """Convenience: a flexkin ``Solution`` (pose, inputs, rods[i].tip_force / base_moment)."""
+def solution_stability(mech, sol, load, N: int = 2 * DEFAULT_N, pose=None, **kw) -> StabilityResult:
+    """Convenience: a flexkin-like ``Solution`` (pose, inputs, rods[i].tip_force / base_moment),
+    e.g. an ``ik_oracle`` or ``fk_oracle`` solution; legs may be clamped to the platform."""
+    if pose is not None or getattr(sol, "pose", None) is None:
+        import types
+
+        sol = types.SimpleNamespace(pose=pose, inputs=sol.inputs, rods=sol.rods)
     rods = mechanism_rods(mech, sol.inputs)
     return mechanism_stability(rods, np.asarray(mech.platform.attach, float), sol.pose, load,
                                [r.tip_force for r in sol.rods], [r.base_moment for r in sol.rods], N=N, **kw)
@@ -652,13 +756,13 @@ def solution_stability(mech, sol, load, N: int = 2 * DEFAULT_N, **kw) -> Stabili
 # ======================================================================================
 # single rod
 # ======================================================================================
-def _single_problem(rod: RodSpec, tip: Tip, N: int) -> _Problem:
+def _single_problem(rod: RodSpec, tip: Tip, N: int, tip_target=None) -> _Problem:
     G, c0 = tip.rows()
     empty = np.zeros((0, 0))
     return _Problem([rod], [N], np.asarray(tip.load, float)[None], G[None], 0,
                     lambda q: c0, lambda q: np.zeros((len(c0), 0)), lambda q, lam: empty,
                     lambda q: 0.0, lambda q: np.zeros(0), lambda q: empty, q_mass=np.zeros(0),
-                    L_ref=rod.length, EI_ref=rod.EI)
+                    L_ref=rod.length, EI_ref=rod.EI, tip_targets=[tip_target])
 
 
 def single_rod_stability(rod: RodSpec, tip: Tip, state: ContinuousRod | None = None,
@@ -670,9 +774,20 @@ def single_rod_stability(rod: RodSpec, tip: Tip, state: ContinuousRod | None = N
     integrated by ODE), or ``theta(s)`` (a callable angle profile, s in [0, L]), or, if neither
     is given, the straight rod theta = clamp_angle.  The multipliers (reactions) are obtained
     by least squares from the discrete stationarity conditions and refined by Newton.
+
+    A tip with a prescribed tangent (``tip.angle``: :meth:`Tip.clamped`, :meth:`Tip.guided`) gets
+    the half-cell Dirichlet term at the tip; the angle is taken modulo 2 pi nearest to the
+    continuous state's tip tangent when ``state`` is given.
     """
+    target = None
+    if tip.angle is not None:
+        target = float(tip.angle)
+        if state is not None:
+            thL = sample_rod(rod, state.tip_force, state.base_moment, 8)[2]
+            target += 2 * math.pi * round((thL - target) / (2 * math.pi))
+
     def build(n):
-        prob = _single_problem(rod, tip, n)
+        prob = _single_problem(rod, tip, n, target)
         if state is not None:
             th = sample_rod(rod, state.tip_force, state.base_moment, n)[0]
         elif theta is not None:
