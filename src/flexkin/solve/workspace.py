@@ -3,18 +3,33 @@
 From one IK solution at a seed pose, the solution is continued over a square grid of
 platform positions ``(x, y)`` at fixed orientation ``theta``: every wave takes the solved
 points of the front, continues each of them to its 4 grid neighbours not yet visited
-(:func:`~flexkin.kinematics.continuation.continue_ik`, all at once), and classifies the new
-points.  Propagation stops
+(:func:`~flexkin.solve.continuation.continue_ik`: tangent predictor, compiled corrector, all
+at once), and classifies the new points.  Propagation stops
 
 * across an **IK singularity**: the continuation fails (the branch folds back) or the
   smooth function ``det A_IK`` changes sign (black boundary);
-* across an **FK singularity / loss of stability**: the new point is an unstable
-  equilibrium or ``det A_FK`` changes sign (orange boundary; with the actuators locked the
-  two coincide, paper §6).
+* across an **FK singularity / loss of stability**: ``det A_FK`` changes sign or the new
+  point is not a stable equilibrium (orange boundary);
+* on request (``constrained=True``), at **infeasible** cells: an input outside its leg's
+  ``range`` (revolute ranges modulo 360 deg), a bending strain over ``max_strain``, or (with
+  ``collisions=True``) rods touching each other, themselves or the platform (purple boundary).
+
+**Stability along the wave.**  With the actuators locked, an equilibrium loses stability only
+where the second variation gains a zero eigenvalue, i.e. where ``A_FK`` is singular (paper
+§6: the FK singularities and the stability boundary coincide).  Along the wave the sign of
+the scaled ``det A_FK`` is carried from cell to cell, so a cell reached without a sign change
+from a stable cell is stable.  ``stability="wave"`` (default) therefore computes the whole
+second variation (:func:`~flexkin.analysis.stability.mechanism_stability`) only at the seed
+and where ``|det A_FK|`` has fallen below a tenth of its value at the source cell (an FK
+singularity may be close); ``stability="full"`` computes it at every cell (every margin
+known, ~1 ms per cell).  Margins not computed are ``NaN``; :meth:`Workspace.margins` fills
+them in.
 
 d-mode changes of a rod are followed (every d-mode is one strip of the rod chart).  A cell
 of the reached region is a boundary cell when one of its neighbours was not entered for one
-of these reasons; cells beyond ``bounds`` are not boundaries.
+of these reasons.  **Grid edge**: with default bounds the box grows (same step, at most
+``grow`` times) on every side the region touches, until it closes; reached cells still on the
+grid's outermost rows/columns are ``boundary_edge`` (the region is cut there).
 
 Aspects: started from every stable IK solution at the seed pose, the maps of seeds whose
 regions share a grid point with the same solution (inputs equal) are merged into one aspect.
@@ -24,7 +39,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -33,32 +48,102 @@ from ..analysis.jacobian import kinematic_jacobians
 from ..analysis.stability import mechanism_stability
 from ..core.validation import check_budget, check_max_mode
 from ..results import Solution
-from ..rod.kernels import CHART_UNIFIED
+from ..rod.closed_form import SEAM_OFFSET, is_seam, standard_chart
+from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, FX, FY, M0
 from ..system import System
 from .continuation import SEAM_V, continue_ik
 from .finish import build_solutions, rod_modes
 from .ik import as_load, ik, refine_ik
 
-__all__ = ["workspace", "Workspace", "WorkspaceMap", "load_workspace", "REACHED", "UNSTABLE", "FAILED", "SEAM"]
+__all__ = ["workspace", "Workspace", "WorkspaceMap", "load_workspace", "dexterous_workspace", "DexterousWorkspace",
+           "REACHED", "UNSTABLE", "FAILED", "SEAM", "INFEASIBLE", "VIOLATION_RANGE", "VIOLATION_STRAIN",
+           "VIOLATION_COLLISION"]
 
 #: status codes of a grid point
-UNVISITED, REACHED, UNSTABLE, FAILED, SEAM = 0, 1, 2, 3, 4
+UNVISITED, REACHED, UNSTABLE, FAILED, SEAM, INFEASIBLE = 0, 1, 2, 3, 4, 5
+#: bits of :attr:`WorkspaceMap.violations`
+VIOLATION_RANGE, VIOLATION_STRAIN, VIOLATION_COLLISION = 1, 2, 4
 _NEIGHBOURS = ((1, 0), (-1, 0), (0, 1), (0, -1))
+#: map arrays stored by :meth:`Workspace.save`
+_MAP_ARRAYS = ("status", "inputs", "modes", "margin", "det_ik", "det_fk", "cond", "boundary_ik", "boundary_fk",
+               "zrod", "boundary_seam", "charts", "violations", "strain", "boundary_infeasible", "boundary_edge")
+#: full stability check where |det A_FK| (scaled) falls below this fraction of its source's value
+_FK_DROP = 0.1
+#: points per rod centre line for the collision checks of a workspace cell
+COLLISION_SAMPLES = 60
+
+
+def _ring(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """``mask`` restricted to the grid's outermost rows and columns."""
+    out = np.zeros_like(mask)
+    out[0, :], out[-1, :], out[:, 0], out[:, -1] = mask[0, :], mask[-1, :], mask[:, 0], mask[:, -1]
+    return out
+
+
+def _next_to(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Cells with a 4-neighbour in ``mask``."""
+    out = np.zeros_like(mask)
+    out[1:] |= mask[:-1]
+    out[:-1] |= mask[1:]
+    out[:, 1:] |= mask[:, :-1]
+    out[:, :-1] |= mask[:, 1:]
+    return out
+
+
+def _stats(v: ArrayLike) -> dict[str, float | None]:
+    """``min``/``mean``/``max`` of the finite values (``None`` when there are none)."""
+    a = np.asarray(v, dtype=float).ravel()
+    a = a[np.isfinite(a)]
+    if not a.size:
+        return {"min": None, "mean": None, "max": None}
+    return {"min": float(a.min()), "mean": float(a.mean()), "max": float(a.max())}
 
 
 @dataclass(frozen=True)
 class WorkspaceMap:
     """The region reached from one seed solution (one aspect), on the grid of its
-    :class:`Workspace`.  Arrays have shape ``(ny, nx)`` (``inputs``: ``(ny, nx, 3)``,
-    ``modes``: ``(ny, nx, 3)``), with meaningful values where ``status == REACHED``.
+    :class:`Workspace`.  Arrays have shape ``(ny, nx)`` (``inputs``, ``modes``, ``charts``:
+    ``(ny, nx, 3)``), with meaningful values where ``status == REACHED``.
 
-    ``status``: 0 unvisited, 1 reached (stable equilibrium), 2 unstable (not entered),
-    3 continuation failed (not entered), 4 not resolved: the step failed while a rod was
-    close to straight under tension, where the elliptic chart has its seam (``|k| = 1``):
-    a limitation of the rod parameterisation, not a singularity of the mechanism.
-    ``boundary_seam``: reached cells next to such cells.  ``boundary_ik`` / ``boundary_fk``: reached cells
-    with a neighbour not entered because of an IK singularity / an FK singularity or
-    instability.  ``seeds``: indices (in the seed IK result) of the solutions merged here.
+    Attributes
+    ----------
+    status : (ny, nx) int8
+        0 unvisited, 1 reached (stable equilibrium), 2 unstable or FK singularity crossed
+        (not entered), 3 continuation failed or IK singularity crossed (not entered), 4 not
+        resolved: the step failed while a rod was close to straight under tension, where the
+        elliptic chart has its seam (``|k| = 1``; a limitation of the rod parameterisation,
+        not a singularity of the mechanism), 5 infeasible (not entered; only with
+        ``constrained=True``).
+    inputs : (ny, nx, 3) float
+        Actuator inputs (m, rad).
+    modes : (ny, nx, 3) int8
+        d-modes of the rods.
+    margin : (ny, nx) float
+        Stability margin (smallest eigenvalue of the dimensionless second variation); ``NaN``
+        where it was not computed (see the module docstring).
+    det_ik, det_fk, cond : (ny, nx) float
+        ``det J_IK``, ``det J_FK`` and the condition number of ``J_FK`` (dimensionless,
+        :mod:`flexkin.analysis.jacobian`).
+    boundary_ik, boundary_fk : (ny, nx) bool
+        Reached cells with a neighbour not entered because of an IK singularity / an FK
+        singularity or instability.
+    seeds : tuple of int
+        Indices (in the seed IK result) of the solutions merged here.
+    zrod : (ny, nx, n_rod) float
+        Rod chart coordinates.
+    boundary_seam : (ny, nx) bool
+        Reached cells next to unresolved ones.
+    charts : (ny, nx, 3) int
+        Rod charts.
+    violations : (ny, nx) int8
+        Constraints violated at a reached (or, constrained, refused) cell: bits
+        :data:`VIOLATION_RANGE`, :data:`VIOLATION_STRAIN`, :data:`VIOLATION_COLLISION`.
+    strain : (ny, nx) float
+        Peak bending strain over the rods (``NaN`` without rod radii).
+    boundary_infeasible : (ny, nx) bool
+        Feasible reached cells with an infeasible neighbour (reached or refused).
+    boundary_edge : (ny, nx) bool
+        Reached cells on the grid's outermost rows/columns: the region is cut by the bounds.
     """
 
     status: NDArray[np.int8]
@@ -74,14 +159,44 @@ class WorkspaceMap:
     zrod: NDArray[np.float64] = field(repr=False, default=None)
     boundary_seam: NDArray[np.bool_] = field(repr=False, default=None)
     charts: NDArray[np.int64] = field(repr=False, default=None)
+    violations: NDArray[np.int8] = field(repr=False, default=None)
+    strain: NDArray[np.float64] = field(repr=False, default=None)
+    boundary_infeasible: NDArray[np.bool_] = field(repr=False, default=None)
+    boundary_edge: NDArray[np.bool_] = field(repr=False, default=None)
+
+    def __post_init__(self) -> None:
+        shape = self.status.shape
+        defaults = {"violations": np.zeros(shape, np.int8), "strain": np.full(shape, np.nan),
+                    "boundary_seam": np.zeros(shape, bool), "boundary_infeasible": np.zeros(shape, bool),
+                    "boundary_edge": _ring(self.status == REACHED)}
+        for name, value in defaults.items():
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, value)
 
     @property
     def reached(self) -> NDArray[np.bool_]:
+        """Cells reached (stable equilibria of this aspect)."""
         return self.status == REACHED
 
     @property
+    def feasible(self) -> NDArray[np.bool_]:
+        """Reached cells that meet every constraint checked."""
+        return self.reached & (self.violations == 0)
+
+    @property
     def area_cells(self) -> int:
+        """Number of reached cells."""
         return int(np.count_nonzero(self.reached))
+
+    @property
+    def feasible_cells(self) -> int:
+        """Number of feasible reached cells."""
+        return int(np.count_nonzero(self.feasible))
+
+    @property
+    def cut_by_grid(self) -> bool:
+        """Whether the region reaches the grid's edge (it may continue beyond the bounds)."""
+        return bool(np.any(self.boundary_edge))
 
 
 @dataclass(frozen=True)
@@ -91,9 +206,13 @@ class Workspace:
     Attributes
     ----------
     mechanism_name : str
+        The mechanism's name.
+    kinds : tuple of str
+        The legs' actuation kinds.
     theta : float
         Platform orientation (rad).
     load : (Fx, Fy, Mz)
+        Load wrench at P (N, N, N m).
     x, y : ndarray
         Grid coordinates (m); cell ``[j, i]`` is at ``(x[i], y[j])``.
     seed : (x, y)
@@ -104,6 +223,16 @@ class Workspace:
         Seconds.
     steps : int
         Continuation steps attempted.
+    message : str
+        Why the maps may be incomplete (empty when they are not).
+    constraints : tuple of str
+        The constraints checked at every cell: ``"ranges"``, ``"strain"``, ``"collisions"``.
+    constrained : bool
+        Whether the wave stopped at infeasible cells (the maps then hold feasible cells only).
+    stability : str
+        ``"wave"`` or ``"full"`` (see the module docstring).
+    grown : int
+        How many times the default bounds were grown for the region to close.
     """
 
     mechanism_name: str
@@ -117,26 +246,47 @@ class Workspace:
     elapsed: float = 0.0
     steps: int = 0
     message: str = ""
+    constraints: tuple[str, ...] = ()
+    constrained: bool = False
+    stability: str = "wave"
+    grown: int = 0
 
     @property
     def step(self) -> float:
         """Grid step (m)."""
         return float(self.x[1] - self.x[0]) if len(self.x) > 1 else 0.0
 
-    def solution(self, mech, aspect: int, j: int, i: int) -> Solution:
-        """The equilibrium mapped at cell ``[j, i]`` of aspect ``aspect`` (0-based), with its
-        stability and Jacobians, as a :class:`~flexkin.results.Solution` of ``mech``."""
+    @property
+    def region(self) -> str:
+        """Which region the maps and every area measure."""
+        checks = ", ".join(self.constraints) if self.constraints else "none available"
+        if self.constrained:
+            return f"feasible only (wave stopped at infeasible cells; checked: {checks})"
+        return f"all stable equilibria reached (constraints not applied; checked per cell: {checks})"
+
+    def solution(self, mech: Any, aspect: int, j: int, i: int) -> Solution:
+        """The equilibrium mapped at cell ``[j, i]`` of an aspect, with its stability and
+        Jacobians.
+
+        Parameters
+        ----------
+        mech : Mechanism
+            The mechanism the workspace was computed for.
+        aspect : int
+            Index of the aspect (0-based).
+        j, i : int
+            Row (y) and column (x) of the cell.
+
+        Returns
+        -------
+        Solution
+        """
         mp = self.maps[aspect]
         if mp.status[j, i] != REACHED:
             raise ValueError(f"cell ({j}, {i}) was not reached in aspect {aspect}")
         system = System.from_mechanism(mech)
-        lay = system.layout
-        x = np.zeros(lay.n_unknowns)
-        x[:lay.n_rod] = mp.zrod[j, i]
-        x[lay.pose] = (self.x[i], self.y[j], self.theta)
-        x[lay.inputs] = mp.inputs[j, i]
-        ch = mp.charts[j, i] if mp.charts is not None else system.default_charts(1)[0]
-        return build_solutions(system, mech, x[None], ch[None], np.asarray(self.load))[0]
+        x, ch = _cell_unknowns(system, self, mp, np.array([j]), np.array([i]))
+        return build_solutions(system, mech, x, ch, np.asarray(self.load))[0]
 
     def union(self) -> NDArray[np.bool_]:
         """Cells reached by any aspect."""
@@ -145,15 +295,29 @@ class Workspace:
             out |= m.reached
         return out
 
+    def feasible_union(self) -> NDArray[np.bool_]:
+        """Feasible cells reached by any aspect."""
+        out = np.zeros((len(self.y), len(self.x)), bool)
+        for m in self.maps:
+            out |= m.feasible
+        return out
+
     def save(self, path: str) -> None:
-        """Save to a ``.npz`` file (:func:`load_workspace` reads it back)."""
+        """Save to a ``.npz`` file (:func:`load_workspace` reads it back).
+
+        Parameters
+        ----------
+        path : str
+            File name.
+        """
         data: dict[str, Any] = {"mechanism_name": self.mechanism_name, "kinds": np.array(self.kinds),
                                 "theta": self.theta, "load": np.array(self.load), "x": self.x, "y": self.y,
                                 "seed": np.array(self.seed), "elapsed": self.elapsed, "steps": self.steps,
-                                "message": self.message, "n_maps": len(self.maps)}
+                                "message": self.message, "n_maps": len(self.maps),
+                                "constraints": np.array(self.constraints, dtype=str),
+                                "constrained": self.constrained, "stability": self.stability, "grown": self.grown}
         for k, m in enumerate(self.maps):
-            for name in ("status", "inputs", "modes", "margin", "det_ik", "det_fk", "cond", "boundary_ik",
-                         "boundary_fk", "zrod", "boundary_seam", "charts"):
+            for name in _MAP_ARRAYS:
                 data[f"map{k}_{name}"] = getattr(m, name)
             data[f"map{k}_seeds"] = np.array(m.seeds)
         np.savez_compressed(path, **data)
@@ -163,42 +327,173 @@ class Workspace:
         h = self.step
         lines = [f"{self.mechanism_name}: workspace at theta = {np.degrees(self.theta):g} deg, grid "
                  f"{len(self.x)} x {len(self.y)} (step {h:g} m), {len(self.maps)} aspect(s), "
-                 f"{self.steps} continuation steps in {self.elapsed:.1f} s"]
+                 f"{self.steps} continuation steps in {self.elapsed:.1f} s",
+                 f"  region: {self.region}"]
+        if self.grown:
+            lines.append(f"  bounds grown {self.grown} time(s) for the region to close")
         for k, m in enumerate(self.maps):
             r = m.reached
             combos = sorted({"".join(map(str, q)) for q in m.modes[r]})
+            feas = "" if self.constrained or not self.constraints else \
+                f" ({m.feasible_cells} feasible, {m.feasible_cells * h * h:.4g} m^2)"
             lines.append(f"  aspect {k + 1} (seed solutions {', '.join(str(s + 1) for s in m.seeds)}): "
-                         f"{int(r.sum())} cells, area {r.sum() * h * h:.4g} m^2, d-modes {', '.join(combos)}; "
+                         f"{int(r.sum())} cells, area {r.sum() * h * h:.4g} m^2{feas}, d-modes {', '.join(combos)}; "
                          f"boundary cells: IK {int(m.boundary_ik.sum())}, FK/instability {int(m.boundary_fk.sum())}, "
+                         f"infeasible {int(m.boundary_infeasible.sum())}, grid edge {int(m.boundary_edge.sum())}, "
                          f"unresolved (rod straight under tension) {int(m.boundary_seam.sum())}")
         if self.message:
             lines.append(self.message)
         return "\n".join(lines)
 
-    def plot(self, path: str | None = None, **kwargs: Any):
-        """Figure like the paper's Fig. 17 (see :func:`flexkin.plot.workspace.plot_workspace`)."""
-        from .plot.workspace import plot_workspace
+    def plot(self, path: str | None = None, **kwargs: Any) -> Any:
+        """Figure like the paper's Fig. 17 (see :func:`flexkin.plot.workspace.plot_workspace`).
+
+        Parameters
+        ----------
+        path : str, optional
+            Save the figure (and its further pages) there.
+        **kwargs
+            Passed to :func:`~flexkin.plot.workspace.plot_workspace`.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from ..plot.workspace import plot_workspace
 
         return plot_workspace([self], path=path, **kwargs)
 
+    def margins(self, mech: Any) -> tuple[NDArray[np.float64], ...]:
+        """The stability margin of every reached cell of every aspect (computed where the wave
+        left it ``NaN``; the maps are not modified).
+
+        Parameters
+        ----------
+        mech : Mechanism
+            The mechanism the workspace was computed for.
+
+        Returns
+        -------
+        tuple of (ny, nx) ndarray
+            One per aspect, ``NaN`` outside the reached cells.
+        """
+        system = System.from_mechanism(mech)
+        out = []
+        for mp in self.maps:
+            mg = np.where(mp.reached, mp.margin, np.nan)
+            jj, ii = np.nonzero(mp.reached & ~np.isfinite(mg))
+            if jj.size:
+                x, ch = _cell_unknowns(system, self, mp, jj, ii)
+                mg[jj, ii] = mechanism_stability(system, x, ch).margin
+            out.append(mg)
+        return tuple(out)
+
+    def metrics(self, mech: Any = None) -> dict[str, Any]:
+        """Workspace-level metrics at this orientation (issue 15; all areas in m^2 over the
+        region named by ``region``).
+
+        Keys: ``theta_deg``, ``step``, ``region``, ``n_aspects``, ``aspect_areas`` (one per
+        aspect, largest first), ``aspect_feasible_areas``, ``workspace_area`` (union of the
+        aspects), ``feasible_area`` (union of their feasible cells), ``singularity_free_area``
+        (the largest aspect: reached from a seed solution without crossing an IK or FK
+        singularity), ``cut_by_grid`` (a region reaches the bounds: the areas are lower bounds),
+        and over the reached cells of the largest aspect ``{"min", "mean", "max"}`` dicts of
+        ``stability_margin`` (all margins computed when ``mech`` is given, else only the
+        known ones), ``abs_det_ik``, ``abs_det_fk``, ``cond`` and ``strain``, the ratios
+        ``det_ik_ratio`` / ``det_fk_ratio`` (smallest over largest ``|det J|``: 1 for a
+        uniform map, near 0 close to a singularity), and ``max_strain`` (over every aspect).
+        Undefined values are ``None``.
+
+        Parameters
+        ----------
+        mech : Mechanism, optional
+            Needed for the stability margins that the wave did not compute.
+
+        Returns
+        -------
+        dict
+        """
+        h2 = self.step ** 2
+        out: dict[str, Any] = {"theta_deg": float(np.degrees(self.theta)), "step": self.step, "region": self.region,
+                               "n_aspects": len(self.maps),
+                               "aspect_areas": [m.area_cells * h2 for m in self.maps],
+                               "aspect_feasible_areas": [m.feasible_cells * h2 for m in self.maps],
+                               "workspace_area": float(self.union().sum()) * h2,
+                               "feasible_area": float(self.feasible_union().sum()) * h2,
+                               "singularity_free_area": (self.maps[0].area_cells * h2) if self.maps else 0.0,
+                               "cut_by_grid": any(m.cut_by_grid for m in self.maps)}
+        strains = [m.strain[m.reached] for m in self.maps]
+        out["max_strain"] = _stats(np.concatenate(strains) if strains else [])["max"]
+        mp = self.maps[0] if self.maps else None
+        r = mp.reached if mp is not None else None
+        margin = (self.margins(mech)[0] if mech is not None else mp.margin) if mp is not None else None
+        for key, val in (("stability_margin", margin), ("abs_det_ik", None if mp is None else np.abs(mp.det_ik)),
+                         ("abs_det_fk", None if mp is None else np.abs(mp.det_fk)),
+                         ("cond", None if mp is None else mp.cond), ("strain", None if mp is None else mp.strain)):
+            out[key] = _stats([] if val is None else val[r])
+        for key in ("ik", "fk"):
+            s = out[f"abs_det_{key}"]
+            out[f"det_{key}_ratio"] = s["min"] / s["max"] if s["max"] else None
+        return out
+
+
+def _cell_unknowns(system: System, ws: Workspace, mp: WorkspaceMap, jj: NDArray, ii: NDArray
+                   ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """The unknowns and charts of cells ``(jj[k], ii[k])`` of map ``mp``."""
+    lay = system.layout
+    x = np.zeros((len(jj), lay.n_unknowns))
+    x[:, :lay.n_rod] = mp.zrod[jj, ii]
+    x[:, lay.pose] = np.stack([ws.x[ii], ws.y[jj], np.full(len(jj), ws.theta)], -1)
+    x[:, lay.inputs] = mp.inputs[jj, ii]
+    ch = mp.charts[jj, ii] if mp.charts is not None else system.default_charts(len(jj))
+    return x, np.asarray(ch, dtype=np.int64)
+
 
 def load_workspace(path: str) -> Workspace:
-    """Read a workspace written by :meth:`Workspace.save`."""
+    """Read a workspace written by :meth:`Workspace.save`.
+
+    Parameters
+    ----------
+    path : str
+        The ``.npz`` file.
+
+    Returns
+    -------
+    Workspace
+    """
     d = np.load(path, allow_pickle=False)
     maps = []
     for k in range(int(d["n_maps"])):
-        g = {name: d[f"map{k}_{name}"] for name in ("status", "inputs", "modes", "margin", "det_ik", "det_fk", "cond",
-                                                      "boundary_ik", "boundary_fk", "zrod", "boundary_seam", "charts")}
+        g = {name: d[f"map{k}_{name}"] for name in _MAP_ARRAYS if f"map{k}_{name}" in d}
         maps.append(WorkspaceMap(seeds=tuple(int(s) for s in d[f"map{k}_seeds"]), **g))
+    extra = {}
+    if "constraints" in d:
+        extra = {"constraints": tuple(str(c) for c in d["constraints"]), "constrained": bool(d["constrained"]),
+                 "stability": str(d["stability"]), "grown": int(d["grown"])}
     return Workspace(str(d["mechanism_name"]), tuple(str(k) for k in d["kinds"]), float(d["theta"]),
                      tuple(float(v) for v in d["load"]), d["x"], d["y"], tuple(float(v) for v in d["seed"]),
-                     tuple(maps), float(d["elapsed"]), int(d["steps"]), str(d["message"]))
+                     tuple(maps), float(d["elapsed"]), int(d["steps"]), str(d["message"]), **extra)
 
 
-def default_grid(mech, step: float | None = None, bounds: ArrayLike | None = None
+def default_grid(mech: Any, step: float | None = None, bounds: ArrayLike | None = None
                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Grid from ``bounds = (x0, x1, y0, y1)`` (default: the box of the legs' origins, grown
-    by the rods' length) and ``step`` (default: 1/100 of the box's larger side)."""
+    by a quarter of the rods' length) and ``step`` (default: 1/100 of the box's larger side).
+
+    Parameters
+    ----------
+    mech : Mechanism
+        The mechanism (legs' origins and rod lengths for the default box).
+    step : float, optional
+        Grid step (m).
+    bounds : (x0, x1, y0, y1), optional
+        Grid box (m).
+
+    Returns
+    -------
+    x, y : ndarray
+        Grid coordinates (m).
+    """
     if bounds is None:
         o = np.array([leg.origin for leg in mech.legs], dtype=float)
         L = max((leg.rod.length or 0.0) for leg in mech.legs) or float(mech.length_scale)
@@ -247,43 +542,149 @@ def _continue_adaptive(system: System, x: NDArray, ch: NDArray, p1: NDArray, w: 
     return xn, cn, ok
 
 
+def cell_peak_curvature(system: System, mech: Any, X: NDArray, charts: NDArray) -> NDArray[np.float64]:
+    """Peak curvature ``max_s |theta'(s)|`` (1/m) of every rod of equilibria ``X``, (n, 3).
+
+    Pinned rods in closed form (:func:`flexkin.analysis.feasibility.rod_max_curvature`, in the
+    unit rod's terms: ``L max|theta'| = 2 sqrt(R L^2/EI) |ku|`` if ``phis <= 0``, else
+    ``|m0| L/EI``, at least the clamp value); clamped-tip rods by
+    :func:`flexkin.analysis.indices.peak_curvature`.
+
+    Parameters
+    ----------
+    system : System
+        The mechanism's equation system.
+    mech : Mechanism
+        The mechanism (rods' joints).
+    X : (n, n_unknowns) ndarray
+        Equilibria.
+    charts : (n, 3) ndarray
+        Their rods' charts.
+
+    Returns
+    -------
+    (n, 3) ndarray
+    """
+    from ..analysis.indices import _rods_of, peak_curvature
+
+    X = np.atleast_2d(X)
+    lay = system.layout
+    n = len(X)
+    out = np.zeros((n, 3))
+    if n == 0:
+        return out
+    q, _ = system.unit_rods(X, charts)
+    _, _, L = system.clamps(X[:, lay.inputs])
+    other = np.zeros(n, bool)
+    for i in range(3):
+        ch = charts[:, i]
+        pinned = (ch != CHART_WRENCH) & (mech.legs[i].joint != "clamped")
+        other |= ~pinned
+        c = lay.rod[i].start
+        z1 = np.where((ch == CHART_SEAM) & ~is_seam(X[:, c + 1]), X[:, c + 1] + SEAM_OFFSET, X[:, c + 1])
+        v, ph = standard_chart(X[:, c], z1)
+        peak = 2.0 * np.sqrt(np.hypot(q[:, i, FX], q[:, i, FY])) * np.abs(np.tanh(v))
+        k = np.maximum(np.where(ph <= 0.0, peak, peak * np.abs(np.cos(ph))), np.abs(q[:, i, M0]))
+        out[:, i] = np.where(pinned, k / L[:, i], 0.0)
+    rows = np.flatnonzero(other)
+    if rows.size:
+        rods = _rods_of(system, mech, X[rows], charts[rows])
+        for r, trio in zip(rows, rods):
+            for i in range(3):
+                if charts[r, i] == CHART_WRENCH or mech.legs[i].joint == "clamped":
+                    out[r, i] = peak_curvature([trio[i]])[0]
+    return out
+
+
+class _CellChecks:
+    """The design's constraints at workspace cells: strain and the violations bit mask."""
+
+    def __init__(self, system: System, mech: Any, collisions: bool) -> None:
+        self.system, self.mech, self.collisions = system, mech, bool(collisions)
+        radii = [leg.rod.radius for leg in mech.legs]
+        self.radius = None if any(r is None for r in radii) else np.array(radii, dtype=float)
+        self.limit = mech.max_strain
+        self.ranged = [k for k, leg in enumerate(mech.legs) if leg.range is not None]
+        names = []
+        if self.ranged:
+            names.append("ranges")
+        if self.limit is not None and self.radius is not None:
+            names.append("strain")
+        if self.collisions:
+            names.append("collisions")
+        self.names = tuple(names)
+
+    def __call__(self, X: NDArray, charts: NDArray) -> tuple[NDArray[np.float64], NDArray[np.int8]]:
+        """Peak strain (n,) (``NaN`` without radii) and violations (n,) of equilibria ``X``."""
+        n = len(X)
+        bad = np.zeros(n, np.int8)
+        strain = np.full(n, np.nan)
+        if n == 0:
+            return strain, bad
+        if self.radius is not None:
+            strain = np.max(cell_peak_curvature(self.system, self.mech, X, charts) * self.radius[None], axis=1)
+            if self.limit is not None:
+                bad |= np.where(strain > self.limit, VIOLATION_STRAIN, 0).astype(np.int8)
+        u = X[:, self.system.layout.inputs]
+        for k in self.ranged:
+            bad |= np.where(self.mech.legs[k].in_range(u[:, k]), 0, VIOLATION_RANGE).astype(np.int8)
+        if self.collisions:
+            bad |= np.where(self._collide(X, charts), VIOLATION_COLLISION, 0).astype(np.int8)
+        return strain, bad
+
+    def _collide(self, X: NDArray, charts: NDArray) -> NDArray[np.bool_]:
+        """Rod-rod, self and rod-platform contact (:func:`~flexkin.analysis.feasibility.check_feasibility`)."""
+        from types import SimpleNamespace
+
+        from ..analysis.feasibility import check_feasibility
+        from ..analysis.indices import _rods_of
+
+        lay = self.system.layout
+        out = np.zeros(len(X), bool)
+        for k, rods in enumerate(_rods_of(self.system, self.mech, X, charts)):
+            sol = SimpleNamespace(pose=X[k, lay.pose], inputs=X[k, lay.inputs], rods=rods)
+            f = check_feasibility(self.mech, sol, n_samples=COLLISION_SAMPLES, max_strain=1.0)
+            out[k] = bool(f.rod_collisions or f.self_intersecting or f.platform_collisions)
+        return out
+
+
 def _propagate(m: System, x0: NDArray, c0: NDArray, seed_ij: tuple[int, int], X: NDArray, Y: NDArray,
-               theta: float, w: NDArray, claimed: list[tuple[NDArray, NDArray]],
-               progress: Callable[[int], None] | None,
+               theta: float, w: NDArray, claimed: list[tuple[NDArray, NDArray]], checks: _CellChecks,
+               constrained: bool, full: bool, progress: Callable[[int], None] | None,
                deadline: float | None = None) -> tuple[dict[str, NDArray], int, set[int]]:
     """Wave propagation of one seed. Returns the map arrays, the number of continuation
     steps, and the indices of earlier maps that this one joins (same solution at a cell)."""
     ny, nx = len(Y), len(X)
     status = np.zeros((ny, nx), np.int8)
     lay = m.layout
-    nu = lay.n_unknowns
-    sol = np.full((ny, nx, nu), np.nan)
+    sol = np.full((ny, nx, lay.n_unknowns), np.nan)
     chs = np.zeros((ny, nx, 3), np.int64)
-    margin = np.zeros((ny, nx))
+    margin = np.full((ny, nx), np.nan)
     dik = np.full((ny, nx), np.inf)
     dfk = np.full((ny, nx), np.inf)
     cond = np.full((ny, nx), np.inf)
     sik = np.zeros((ny, nx))
     sfk = np.zeros((ny, nx))
+    strain = np.full((ny, nx), np.nan)
+    viol = np.zeros((ny, nx), np.int8)
     bik = np.zeros((ny, nx), bool)
     bfk = np.zeros((ny, nx), bool)
     bseam = np.zeros((ny, nx), bool)
+    binf = np.zeros((ny, nx), bool)
     su = m.input_scale()
     iu = lay.inputs
     joins: set[int] = set()
 
-    def record(xs, cs):
-        return mechanism_stability(m, xs, cs), kinematic_jacobians(m, xs, cs, w)
-
     j0, i0 = seed_ij
     x0 = x0.copy()
     x0[lay.pose] = (X[i0], Y[j0], theta)
-    st, jac = record(x0[None], c0[None])
+    st = mechanism_stability(m, x0[None], c0[None])
+    jac = kinematic_jacobians(m, x0[None], c0[None], w)
+    s0, v0 = checks(x0[None], c0[None])
     status[j0, i0] = REACHED
-    sol[j0, i0] = x0
-    chs[j0, i0] = c0
+    sol[j0, i0], chs[j0, i0] = x0, c0
     margin[j0, i0], dik[j0, i0], dfk[j0, i0], cond[j0, i0] = st.margin[0], jac.det_ik[0], jac.det_fk[0], jac.cond[0]
-    sik[j0, i0], sfk[j0, i0] = jac.sing_ik[0], jac.sing_fk[0]
+    sik[j0, i0], sfk[j0, i0], strain[j0, i0], viol[j0, i0] = jac.sing_ik[0], jac.sing_fk[0], s0[0], v0[0]
     front = [(j0, i0)]
     steps = 0
     while front:
@@ -308,34 +709,52 @@ def _propagate(m: System, x0: NDArray, c0: NDArray, seed_ij: tuple[int, int], X:
         xn, cn, ok = _continue_adaptive(m, xs, cs, p1, w)
         steps += len(D)
         new_front = []
-        if np.any(ok):
-            idx = np.flatnonzero(ok)
-            st, jac = record(xn[idx], cn[idx])
+        idx = np.flatnonzero(ok)
+        if idx.size:
+            jac = kinematic_jacobians(m, xn[idx], cn[idx], w)
+            Sj, Si = S[idx, 0], S[idx, 1]
+            crossed_ik = np.sign(jac.sing_ik) != np.sign(sik[Sj, Si])
+            crossed_fk = np.sign(jac.sing_fk) != np.sign(sfk[Sj, Si])
+            # stability along the wave: the whole second variation where det A_FK dropped
+            stable = np.ones(idx.size, bool)
+            mg = np.full(idx.size, np.nan)
+            chk = ~crossed_ik & ~crossed_fk
+            if not full:
+                chk &= np.abs(jac.sing_fk) < _FK_DROP * np.abs(sfk[Sj, Si])
+            if np.any(chk):
+                st = mechanism_stability(m, xn[idx[chk]], cn[idx[chk]])
+                stable[chk] = st.stable == 1
+                mg[chk] = st.margin
+            cstrain, cviol = checks(xn[idx], cn[idx])
             for k, r in enumerate(idx):
                 jj, ii = D[r]
                 j, i = S[r]
-                crossed_ik = np.sign(jac.sing_ik[k]) != np.sign(sik[j, i])
-                crossed_fk = np.sign(jac.sing_fk[k]) != np.sign(sfk[j, i])
-                if crossed_ik:
+                if crossed_ik[k]:
                     status[jj, ii] = FAILED
                     bik[j, i] = True
-                elif st.stable[k] != 1 or crossed_fk:
+                    continue
+                if crossed_fk[k] or not stable[k]:
                     status[jj, ii] = UNSTABLE
                     bfk[j, i] = True
-                else:
-                    status[jj, ii] = REACHED
-                    sol[jj, ii] = xn[r]
-                    chs[jj, ii] = cn[r]
-                    margin[jj, ii], dik[jj, ii], dfk[jj, ii] = st.margin[k], jac.det_ik[k], jac.det_fk[k]
-                    cond[jj, ii], sik[jj, ii], sfk[jj, ii] = jac.cond[k], jac.sing_ik[k], jac.sing_fk[k]
-                    # joining a region mapped from an earlier seed: same solution at this cell
-                    hit = False
-                    for q, (st_q, sol_q) in enumerate(claimed):
-                        if st_q[jj, ii] == REACHED and np.max(np.abs(sol_q[jj, ii, iu] - xn[r, iu]) / su) < 1e-6:
-                            joins.add(q)
-                            hit = True
-                    if not hit:
-                        new_front.append((jj, ii))
+                    continue
+                if constrained and cviol[k]:
+                    status[jj, ii] = INFEASIBLE
+                    viol[jj, ii] = cviol[k]
+                    binf[j, i] = True
+                    continue
+                status[jj, ii] = REACHED
+                sol[jj, ii], chs[jj, ii] = xn[r], cn[r]
+                margin[jj, ii], dik[jj, ii], dfk[jj, ii] = mg[k], jac.det_ik[k], jac.det_fk[k]
+                cond[jj, ii], sik[jj, ii], sfk[jj, ii] = jac.cond[k], jac.sing_ik[k], jac.sing_fk[k]
+                strain[jj, ii], viol[jj, ii] = cstrain[k], cviol[k]
+                # joining a region mapped from an earlier seed: same solution at this cell
+                hit = False
+                for q, (st_q, sol_q) in enumerate(claimed):
+                    if st_q[jj, ii] == REACHED and np.max(np.abs(sol_q[jj, ii, iu] - xn[r, iu]) / su) < 1e-6:
+                        joins.add(q)
+                        hit = True
+                if not hit:
+                    new_front.append((jj, ii))
         for r in np.flatnonzero(~ok):
             jj, ii = D[r]
             j, i = S[r]
@@ -361,19 +780,85 @@ def _propagate(m: System, x0: NDArray, c0: NDArray, seed_ij: tuple[int, int], X:
     bik &= reached
     bfk &= reached
     bseam &= reached & ~bik & ~bfk
+    ok_cells = reached & (viol == 0)
+    binf = (binf | _next_to(reached & (viol != 0))) & ok_cells
     return ({"status": status, "sol": sol, "charts": chs, "margin": margin, "det_ik": dik, "det_fk": dfk, "cond": cond,
-             "boundary_ik": bik, "boundary_fk": bfk, "boundary_seam": bseam}, steps, joins)
+             "boundary_ik": bik, "boundary_fk": bfk, "boundary_seam": bseam, "violations": viol, "strain": strain,
+             "boundary_infeasible": binf}, steps, joins)
 
 
-def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load: ArrayLike | None = None,
+def _map_all(m: System, starts: list[tuple[int, NDArray, NDArray]], ij: tuple[int, int], X: NDArray, Y: NDArray,
+             th: float, w: NDArray, checks: _CellChecks, constrained: bool, full: bool,
+             cb: Callable[[int], None] | None, deadline: float | None) -> tuple[list[WorkspaceMap], int]:
+    """The maps of every seed solution on the grid ``X`` x ``Y`` (merged aspects, largest first)."""
+    j0, i0 = ij
+    raw: list[dict[str, NDArray]] = []
+    seeds: list[list[int]] = []
+    claimed: list[tuple[NDArray, NDArray]] = []
+    total = 0
+    iu = m.layout.inputs
+    for k, x0, c0 in starts:
+        # a seed already inside a mapped region (same solution at the seed cell) adds nothing
+        dup = [q for q, (st_q, sol_q) in enumerate(claimed)
+               if st_q[j0, i0] == REACHED and np.allclose(sol_q[j0, i0, iu], x0[iu], atol=1e-9 * m.L_ref)]
+        if dup:
+            seeds[dup[0]].append(k)
+            continue
+        if deadline is not None and time.perf_counter() > deadline:
+            break
+        maps_k, n, joins = _propagate(m, x0, c0, (j0, i0), X, Y, th, w, claimed, checks, constrained, full, cb,
+                                      deadline)
+        total += n
+        raw.append(maps_k)
+        seeds.append([k])
+        claimed.append((maps_k["status"], maps_k["sol"]))
+        for q in sorted(joins):
+            seeds[-1].extend(seeds[q])
+            seeds[q] = []
+    maps = []
+    for r, s in zip(raw, seeds):
+        if not s:
+            continue  # merged into a later one
+        sol = r.pop("sol")
+        reached = r["status"] == REACHED
+        modes = np.zeros(sol.shape[:2] + (3,), np.int8)
+        if np.any(reached):
+            modes[reached] = rod_modes(m, sol[reached], r["charts"][reached])
+        maps.append(WorkspaceMap(inputs=np.nan_to_num(sol[..., iu]), modes=modes, seeds=tuple(sorted(set(s))),
+                                 zrod=np.nan_to_num(sol[..., :m.layout.n_rod]), boundary_edge=_ring(reached), **r))
+    maps.sort(key=lambda mp: -mp.area_cells)
+    return maps, total
+
+
+def _grown(X: NDArray, Y: NDArray, maps: Sequence[WorkspaceMap]) -> tuple[NDArray, NDArray] | None:
+    """The grid grown by half its size (same step) on every side a region touches, or
+    ``None`` if no region touches the grid's edge."""
+    h = X[1] - X[0] if len(X) > 1 else Y[1] - Y[0]
+    u = np.zeros((len(Y), len(X)), bool)
+    for mp in maps:
+        u |= mp.reached
+    sides = (u[:, 0].any(), u[:, -1].any(), u[0].any(), u[-1].any())
+    if not any(sides):
+        return None
+    ax, ay = max(len(X) // 2, 2), max(len(Y) // 2, 2)
+    x = np.concatenate([X[0] - h * np.arange(ax, 0, -1) if sides[0] else [], X,
+                        X[-1] + h * np.arange(1, ax + 1) if sides[1] else []])
+    y = np.concatenate([Y[0] - h * np.arange(ay, 0, -1) if sides[2] else [], Y,
+                        Y[-1] + h * np.arange(1, ay + 1) if sides[3] else []])
+    return (x, y) if len(x) * len(y) <= 4_000_000 else None
+
+
+def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None, load: ArrayLike | None = None,
               step: float | None = None, bounds: ArrayLike | None = None, max_mode: int = 2,
               all_aspects: bool = True, progress: bool | Callable[[int], None] = False,
-              time_budget: float | None = None) -> Workspace:
+              time_budget: float | None = None, *, constrained: bool = False, collisions: bool = False,
+              grow: int | None = None, stability: str = "wave") -> Workspace:
     """Constant-orientation workspace of ``mech`` at orientation ``theta`` (rad).
 
     Parameters
     ----------
     mech : Mechanism
+        The mechanism.
     theta : float
         Platform orientation (rad).
     seed : (x, y) or Solution, optional
@@ -384,10 +869,11 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
     step : float, optional
         Grid step (m); default 1/100 of the bounding box's larger side.
     bounds : (x0, x1, y0, y1), optional
-        Grid box (m); default: the legs' origins grown by a quarter rod length.
+        Grid box (m); default: the legs' origins grown by a quarter rod length, then grown
+        further while a region touches it (see ``grow``).
     max_mode : int
-        Largest d-mode for the seed IK (continuation may then enter higher modes? no:
-        rods follow their branch; modes are whatever the branch takes).
+        Largest d-mode of the seed IK (along the wave the rods follow their branch into
+        whatever d-modes it takes).
     all_aspects : bool
         Start from every stable seed solution (default) or only the first stable one.
     progress : bool or callable
@@ -396,6 +882,19 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
     time_budget : float, optional
         Seconds; when they run out the propagation stops and ``message`` says so (the maps
         hold what was reached).
+    constrained : bool
+        Stop the wave at infeasible cells (inputs out of range, strain over the mechanism's
+        ``max_strain``, collisions when ``collisions``); by default they are reached and
+        marked (:attr:`WorkspaceMap.violations`).
+    collisions : bool
+        Also check rod-rod, self and rod-platform contact at every cell (a few ms per cell).
+    grow : int, optional
+        Largest number of times the grid grows (by half its size, same step) on the sides
+        a region touches; default 3 with default ``bounds``, 0 with given ``bounds``.  Cells
+        still on the edge are ``boundary_edge``.
+    stability : {"wave", "full"}
+        Stability carried along the wave by the sign of ``det A_FK`` (default) or computed
+        at every cell (see the module docstring).
 
     Returns
     -------
@@ -406,6 +905,12 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
     th = float(theta)
     if not np.isfinite(th):
         raise ValueError(f"theta must be finite, got {theta!r}")
+    if stability not in ("wave", "full"):
+        raise ValueError(f"stability must be 'wave' or 'full', got {stability!r}")
+    if grow is None:
+        grow = 3 if bounds is None else 0
+    if isinstance(grow, bool) or not isinstance(grow, (int, np.integer)) or grow < 0:
+        raise ValueError(f"grow must be an integer >= 0, got {grow!r}")
     w = as_load(mech, load)
     m = System.from_mechanism(mech)
     X, Y = default_grid(mech, step, bounds)
@@ -423,6 +928,7 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
         raise ValueError(f"seed ({sxy[0]:g}, {sxy[1]:g}) lies outside the bounds")
     pose = np.array([X[i0], Y[j0], th])
     kinds = tuple(leg.actuation for leg in mech.legs)
+    checks = _CellChecks(m, mech, collisions)
     if isinstance(seed, Solution):
         x = np.array(seed.x, dtype=float)
         x[m.layout.pose] = pose
@@ -435,9 +941,18 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
         if not all_aspects:
             stable = stable[:1]
         starts = [(k, np.array(res_sols[k].x), np.array(res_sols[k].charts)) for k in stable]
+    notes = []
+    if constrained and starts:
+        _, bad = checks(np.array([s[1] for s in starts]), np.array([s[2] for s in starts]))
+        if np.any(bad):
+            notes.append(f"{int(np.count_nonzero(bad))} stable seed solution(s) infeasible at the seed pose: "
+                         f"not mapped")
+        starts = [s for s, b in zip(starts, bad) if not b]
+    meta = {"constraints": checks.names, "constrained": bool(constrained), "stability": stability}
     if not starts:
+        why = "no feasible stable IK solution at the seed pose" if notes else "no stable IK solution at the seed pose"
         return Workspace(mech.name, kinds, th, tuple(map(float, w)), X, Y, (float(X[i0]), float(Y[j0])), (),
-                         time.perf_counter() - t0, 0, "no stable IK solution at the seed pose")
+                         time.perf_counter() - t0, 0, why, **meta)
     bar = None
     cb: Callable[[int], None] | None = None
     if progress is True:
@@ -448,46 +963,112 @@ def workspace(mech, theta: float, seed: ArrayLike | Solution | None = None, load
         cb = bar.update
     elif callable(progress):
         cb = progress
-    raw: list[dict[str, NDArray]] = []
-    seeds: list[list[int]] = []
-    claimed: list[tuple[NDArray, NDArray]] = []
-    total = 0
-    iu = m.layout.inputs
-    for k, x0, c0 in starts:
-        # a seed already inside a mapped region (same solution at the seed cell) adds nothing
-        dup = [q for q, (st_q, sol_q) in enumerate(claimed)
-               if st_q[j0, i0] == REACHED and np.allclose(sol_q[j0, i0, iu], x0[iu], atol=1e-9 * m.L_ref)]
-        if dup:
-            seeds[dup[0]].append(k)
-            continue
-        if deadline is not None and time.perf_counter() > deadline:
-            break
-        maps_k, n, joins = _propagate(m, x0, c0, (j0, i0), X, Y, th, w, claimed, cb, deadline)
+    total, grown = 0, 0
+    while True:
+        maps, n = _map_all(m, starts, (j0, i0), X, Y, th, w, checks, constrained, stability == "full", cb, deadline)
         total += n
-        raw.append(maps_k)
-        seeds.append([k])
-        claimed.append((maps_k["status"], maps_k["sol"]))
-        for q in sorted(joins):
-            seeds[-1].extend(seeds[q])
-            seeds[q] = []
+        if grown >= grow or (deadline is not None and time.perf_counter() > deadline):
+            break
+        bigger = _grown(X, Y, maps)
+        if bigger is None:
+            break
+        i0 += int(np.count_nonzero(bigger[0] < X[0]))
+        j0 += int(np.count_nonzero(bigger[1] < Y[0]))
+        X, Y = bigger
+        grown += 1
     if bar is not None:
         bar.close()
-    maps = []
-    for r, s in zip(raw, seeds):
-        if not s:
-            continue  # merged into a later one
-        sol = r["sol"]
-        reached = r["status"] == REACHED
-        modes = np.zeros(sol.shape[:2] + (3,), np.int8)
-        if np.any(reached):
-            modes[reached] = rod_modes(m, sol[reached], r["charts"][reached])
-        maps.append(WorkspaceMap(r["status"], np.nan_to_num(sol[..., m.layout.inputs]), modes, r["margin"],
-                                 r["det_ik"], r["det_fk"], r["cond"], r["boundary_ik"], r["boundary_fk"],
-                                 tuple(sorted(set(s))), np.nan_to_num(sol[..., :m.layout.n_rod]), r["boundary_seam"],
-                                 r["charts"]))
-    # merged maps: a map joined by a later seed is reported within that later map's union
-    maps.sort(key=lambda mp: -mp.area_cells)
-    msg = ("time budget exhausted: the maps hold what was reached"
-           if deadline is not None and time.perf_counter() > deadline else "")
+    if deadline is not None and time.perf_counter() > deadline:
+        notes.append("time budget exhausted: the maps hold what was reached")
+    if any(mp.cut_by_grid for mp in maps):
+        notes.append("the region reaches the grid's edge (boundary_edge cells): it is cut by the bounds, its areas "
+                     "are lower bounds")
     return Workspace(mech.name, kinds, th, tuple(map(float, w)), X, Y, (float(X[i0]), float(Y[j0])), tuple(maps),
-                     time.perf_counter() - t0, total, msg)
+                     time.perf_counter() - t0, total, "; ".join(notes), grown=grown, **meta)
+
+
+@dataclass(frozen=True)
+class DexterousWorkspace:
+    """The positions reachable at every orientation of a range (issue 15).
+
+    Attributes
+    ----------
+    thetas : ndarray
+        The orientations sampled (rad).
+    x, y : ndarray
+        Common grid (m); ``mask[j, i]`` is at ``(x[i], y[j])``.
+    mask : (ny, nx) bool
+        Cells reached by some aspect at every orientation.
+    feasible_mask : (ny, nx) bool
+        Cells reached by a feasible equilibrium at every orientation.
+    workspaces : tuple of Workspace
+        One per orientation.
+    """
+
+    thetas: NDArray[np.float64]
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    mask: NDArray[np.bool_]
+    feasible_mask: NDArray[np.bool_]
+    workspaces: tuple[Workspace, ...]
+
+    @property
+    def step(self) -> float:
+        """Grid step (m)."""
+        return self.workspaces[0].step if self.workspaces else 0.0
+
+    @property
+    def area(self) -> float:
+        """Area of the dexterous workspace (m^2)."""
+        return float(np.count_nonzero(self.mask)) * self.step ** 2
+
+    @property
+    def feasible_area(self) -> float:
+        """Area of the feasible dexterous workspace (m^2)."""
+        return float(np.count_nonzero(self.feasible_mask)) * self.step ** 2
+
+    @property
+    def cut_by_grid(self) -> bool:
+        """Whether a region at some orientation reaches its grid's edge (the areas are then
+        lower bounds)."""
+        return any(mp.cut_by_grid for ws in self.workspaces for mp in ws.maps)
+
+
+def dexterous_workspace(mech: Any, thetas: ArrayLike, **kwargs: Any) -> DexterousWorkspace:
+    """The dexterous workspace over the orientations ``thetas``: the grid points ``(x, y)``
+    reached (by any aspect) at every orientation.
+
+    All maps share one grid lattice (same step and origin; a grown grid stays on it), so the
+    intersection is taken cell by cell.  Sample the orientation range finely enough for its
+    purpose: a point is dexterous at the orientations sampled.
+
+    Parameters
+    ----------
+    mech : Mechanism
+        The mechanism.
+    thetas : array_like
+        Orientations (rad), at least one.
+    **kwargs
+        Passed to :func:`workspace` (``step``, ``bounds``, ``seed``, ``constrained``, ...).
+
+    Returns
+    -------
+    DexterousWorkspace
+    """
+    th = np.atleast_1d(np.asarray(thetas, dtype=float))
+    if th.ndim != 1 or th.size == 0 or not np.all(np.isfinite(th)):
+        raise ValueError(f"thetas must be one or more finite orientations (rad), got {thetas!r}")
+    wss = tuple(workspace(mech, float(t), **kwargs) for t in th)
+    h = wss[0].step
+    x0, y0 = max(ws.x[0] for ws in wss), max(ws.y[0] for ws in wss)
+    x1, y1 = min(ws.x[-1] for ws in wss), min(ws.y[-1] for ws in wss)
+    nx = max(int(round((x1 - x0) / h)) + 1, 0)
+    ny = max(int(round((y1 - y0) / h)) + 1, 0)
+    mask = np.ones((ny, nx), bool)
+    feas = np.ones((ny, nx), bool)
+    for ws in wss:
+        i = int(round((x0 - ws.x[0]) / h))
+        j = int(round((y0 - ws.y[0]) / h))
+        mask &= ws.union()[j:j + ny, i:i + nx]
+        feas &= ws.feasible_union()[j:j + ny, i:i + nx]
+    return DexterousWorkspace(th, x0 + h * np.arange(nx), y0 + h * np.arange(ny), mask, feas, wss)
