@@ -712,7 +712,18 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``flexkin`` command."""
+    """Entry point of the ``flexkin`` command.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        Arguments without the program name (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        Exit status: 0, or 2 for a usage error (one line on stderr).
+    """
     from .errors import FlexkinWarning
 
     os.environ.setdefault("MPLBACKEND", "Agg")  # figures are files; matplotlib is imported only to draw one

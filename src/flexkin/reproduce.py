@@ -69,7 +69,19 @@ def _examples_dir() -> Path:
 
 
 def fmt_length(v: float, resolution: float = LENGTH_RESOLUTION) -> str:
-    """A length in m to the given resolution: ``2.04e-14`` -> ``"0"``, ``0.024950`` -> ``"0.02495"``."""
+    """A length in m to the given resolution: ``2.04e-14`` -> ``"0"``, ``0.024950`` -> ``"0.02495"``.
+
+    Parameters
+    ----------
+    v : float
+        Length (m).
+    resolution : float
+        Smallest length that means something (m).
+
+    Returns
+    -------
+    str
+    """
     if not np.isfinite(v):
         return "–"
     if abs(v) < resolution:

@@ -1,7 +1,7 @@
 """Cosserat material data of a mechanism: per-leg ``G``/``poisson``, ``density``,
 ``shear_coefficient`` and the ``[environment] gravity`` of its file (issue 16).
 
-The values are validated by the loader (:func:`flexkin.mechanism.loader.resolve_material`)
+The values are validated by the loader (``flexkin.mechanism.loader``)
 and carried by ``Rod.G``, ``Rod.poisson``, ``Rod.density``, ``Rod.shear_coefficient`` and
 ``Mechanism.gravity``.
 """
@@ -16,7 +16,18 @@ _KEYS = ("G", "poisson", "density", "shear_coefficient")
 
 
 def leg_materials(mech: Any) -> list[dict[str, float]]:
-    """Per leg, the material keys given for it (``[rod]`` defaults and the leg's overrides)."""
+    """Per leg, the material keys given for it (``[rod]`` defaults and the leg's overrides).
+
+    Parameters
+    ----------
+    mech : Mechanism
+        The mechanism.
+
+    Returns
+    -------
+    list of dict
+        Per leg, ``G``, ``poisson``, ``density``, ``shear_coefficient`` where given.
+    """
     return [{k: getattr(leg.rod, k) for k in _KEYS if getattr(leg.rod, k) is not None} for leg in mech.legs]
 
 
@@ -24,7 +35,23 @@ def cosserat_setup(mech: Any, gravity: Sequence[float] | None = None) -> tuple[t
     """Per-leg :class:`~flexkin.cosserat.CosseratParams` from each rod's ``E``, ``radius`` and
     material keys, and the gravity vector (``gravity`` if given, else the file's).
 
-    Raises ``ValueError`` naming the leg when a rod lacks ``E`` or ``radius``.
+    Parameters
+    ----------
+    mech : Mechanism
+        The mechanism; every rod needs ``E`` and ``radius``.
+    gravity : (gx, gy), optional
+        In-plane gravity (m/s^2); default :attr:`Mechanism.gravity`.
+
+    Returns
+    -------
+    params : tuple of CosseratParams
+        One per leg.
+    gravity : (gx, gy) or None
+
+    Raises
+    ------
+    ValueError
+        Naming the leg, when a rod lacks ``E`` or ``radius``.
     """
     from ..cosserat import CosseratParams
 

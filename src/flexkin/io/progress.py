@@ -26,7 +26,25 @@ def progress_wanted(quiet: bool = False, stream: Any = None) -> bool:
 
 
 def bar(total: int | None, desc: str, unit: str = "it", enabled: bool = True, **kw: Any):
-    """A tqdm bar on stderr (a disabled one when not ``enabled``)."""
+    """A tqdm bar on stderr (a disabled one when not ``enabled``).
+
+    Parameters
+    ----------
+    total : int or None
+        Number of units of work (``None``: unknown).
+    desc : str
+        Label.
+    unit : str
+        Name of one unit.
+    enabled : bool
+        Draw it.
+    **kw
+        Passed to ``tqdm``.
+
+    Returns
+    -------
+    tqdm.tqdm
+    """
     from tqdm.auto import tqdm
 
     return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, disable=not enabled, leave=False,
@@ -35,7 +53,17 @@ def bar(total: int | None, desc: str, unit: str = "it", enabled: bool = True, **
 
 class Ticker:
     """Context manager: ``desc: 12.3 s`` on stderr, refreshed every ``interval`` seconds while the
-    body runs (for calls that have no progress callback).  Does nothing when not ``enabled``."""
+    body runs (for calls that have no progress callback).  Does nothing when not ``enabled``.
+
+    Parameters
+    ----------
+    desc : str
+        Label.
+    enabled : bool
+        Draw it.
+    interval : float
+        Refresh period (s).
+    """
 
     def __init__(self, desc: str, enabled: bool = True, interval: float = 0.25) -> None:
         self.desc, self.enabled, self.interval = desc, enabled, interval

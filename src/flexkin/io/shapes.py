@@ -50,7 +50,19 @@ def _solutions_of(result: Any) -> tuple[list[Any], np.ndarray | None]:
 
 def shape_table(solutions: Sequence[Any], n_points: int = 101) -> dict[str, np.ndarray]:
     """Arrays ``(n, 3, n_points)`` ``s_m``, ``x_m``, ``y_m``, ``theta_deg``, ``moment_Nm`` of the rods
-    of ``solutions``, with per-solution ``solution``, ``modes``, ``pose``, ``inputs``, ``stable``."""
+    of ``solutions``, with per-solution ``solution``, ``modes``, ``pose``, ``inputs``, ``stable``.
+
+    Parameters
+    ----------
+    solutions : sequence of Solution
+        The equilibria.
+    n_points : int
+        Points per rod, uniformly spaced in arc length (>= 2).
+
+    Returns
+    -------
+    dict of str to ndarray
+    """
     if int(n_points) < 2:
         raise ValueError(f"n_points must be >= 2, got {n_points!r}")
     n = len(solutions)
@@ -95,7 +107,19 @@ def write_shapes(path: str | os.PathLike[str], result: Any, n_points: int = 101)
     :class:`~flexkin.results.KinematicsResult`, or a :class:`~flexkin.solve.path.PathResult`:
     every sample) to ``path``; the format follows the extension (``.csv`` or ``.npz``).
 
-    Returns the path written.
+    Parameters
+    ----------
+    path : str or path-like
+        Output file, ``.csv`` or ``.npz``.
+    result : KinematicsResult or PathResult
+        The solutions (or path samples) whose rods are written.
+    n_points : int
+        Points per rod, uniformly spaced in arc length.
+
+    Returns
+    -------
+    Path
+        The file written.
     """
     out = Path(path)
     ext = out.suffix.lower().lstrip(".")

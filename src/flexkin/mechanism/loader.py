@@ -17,7 +17,7 @@ and ignored for length legs.  ``[limits] max_strain`` requires every leg's ``rad
 
 Material keys beyond bending (``G`` or ``poisson``, ``density``, ``shear_coefficient``; used
 by the Cosserat refinement) and ``[environment] gravity`` are validated here and resolved per
-leg by :func:`resolve_material` (a leg's own value wins; a leg giving ``G`` or ``poisson``
+leg by ``_resolve_material`` (a leg's own value wins; a leg giving ``G`` or ``poisson``
 drops the other one inherited from ``[rod]``), and stored on each leg's
 :class:`~flexkin.mechanism.model.Rod` and on :attr:`Mechanism.gravity`.
 
@@ -70,7 +70,7 @@ from flexkin.mechanism.model import (
     circular_EI,
 )
 
-__all__ = ["load_mechanism", "mechanism_from_dict", "resolve_material", "MATERIAL_KEYS"]
+__all__ = ["load_mechanism", "mechanism_from_dict", "MATERIAL_KEYS"]
 
 _TOP_KEYS = ("name", "rod", "platform", "leg", "load", "limits", "environment")
 _ROD_KEYS = ("length", "E", "radius", "EI")
@@ -267,7 +267,7 @@ def _material_values(table: dict[str, Any], path: str) -> dict[str, float]:
     return out
 
 
-def resolve_material(defaults: dict[str, float], overrides: dict[str, float], E: float | None,
+def _resolve_material(defaults: dict[str, float], overrides: dict[str, float], E: float | None,
                      path: str) -> dict[str, float]:
     """A leg's material keys (``G``, ``poisson``, ``density``, ``shear_coefficient``): the leg's
     own values over the ``[rod]`` defaults.  A leg giving ``G`` or ``poisson`` drops the other
@@ -381,7 +381,7 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float], material_defaults: 
             )
         rng = (math.radians(lo), math.radians(hi)) if act == "revolute" else (lo, hi)
     rod = _resolve_rod(rod_defaults, _rod_values(table, path), act, path)
-    material = resolve_material(material_defaults or {}, _material_values(table, path), rod.E, path)
+    material = _resolve_material(material_defaults or {}, _material_values(table, path), rod.E, path)
     if material:
         rod = dataclasses.replace(rod, **material)
     joint = table.get("joint", "pinned")

@@ -170,6 +170,17 @@ def revolute_inputs_look_like_radians(mech: Any, inputs_display: Sequence[float]
     They do when every revolute input lies within +-2 pi (at least one of them non-zero) and,
     for the legs with a ``range``, at least one input is outside its range in degrees while
     its radian reading lies inside it (without any range, the magnitudes alone decide).
+
+    Parameters
+    ----------
+    mech : Mechanism
+        The mechanism.
+    inputs_display : sequence of float
+        The three inputs as typed (m, or deg for revolute legs).
+
+    Returns
+    -------
+    str or None
     """
     rev = [(i, float(v), leg) for i, (v, leg) in enumerate(zip(inputs_display, mech.legs))
            if leg.actuation == "revolute"]

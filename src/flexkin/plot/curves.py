@@ -28,7 +28,19 @@ _OFFSETS = [(dx * r, dy * r) for r in (6, 14, 24, 36, 50)
 
 
 def id_ranges(ids: list[int], limit: int = 8) -> str:
-    """``[1, 2, 3, 5, 9, 10]`` -> ``"1–3, 5, 9–10"``; more than ``limit`` runs end with ``"…"``."""
+    """``[1, 2, 3, 5, 9, 10]`` -> ``"1–3, 5, 9–10"``; more than ``limit`` runs end with ``"…"``.
+
+    Parameters
+    ----------
+    ids : list of int
+        Solution ids.
+    limit : int
+        Most runs shown.
+
+    Returns
+    -------
+    str
+    """
     ids = sorted(set(int(i) for i in ids))
     runs: list[tuple[int, int]] = []
     for i in ids:
@@ -117,6 +129,17 @@ def plot_curves(result, path: str | None = None) -> Any:
 
     The IK solutions of ``result`` are marked on them and labelled with their ids (as in
     ``result.table()``; solutions at the same point share a label).
+
+    Parameters
+    ----------
+    result : KinematicsResult
+        An IK result (its legs' curves are computed again).
+    path : str, optional
+        Save the figure there.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
     from matplotlib.lines import Line2D
 

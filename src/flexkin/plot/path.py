@@ -48,8 +48,19 @@ def plot_path(result, path: str | None = None) -> Any:
     ``sing_ik``, ``sing_fk`` (linear, zero at a singularity); ``det J_IK`` and ``det J_FK``
     (dimensionless, symmetric-log axis with a threshold adapted to the data); the stability
     margin (unstable samples marked).  Events are vertical lines: black = IK singularity / end
-    of the branch, orange = FK singularity / stability lost, grey = d-mode change.  Returns the
-    Figure; saves it if ``path``."""
+    of the branch, orange = FK singularity / stability lost, grey = d-mode change.
+
+    Parameters
+    ----------
+    result : PathResult
+        A followed path (:func:`flexkin.follow_path`).
+    path : str, optional
+        Save the figure there.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     fig = new_figure(figsize=(7.5, 10.0), layout="constrained")
     ax1, ax2, ax3, ax4 = fig.subplots(4, 1, sharex=True)
     t = result.t

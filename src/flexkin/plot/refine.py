@@ -27,7 +27,23 @@ REFINED_STYLE = dict(color="k", lw=1.2, ls="--")
 
 def refined_rod_shapes(refined: Any, mech: Any, refine_result: Any, n_points: int = 121) -> list[np.ndarray]:
     """World-frame centre lines ``(n_points, 2)`` of the three rods of a reached
-    :class:`~flexkin.cosserat.RefinedSolution` (integrated again from its clamps)."""
+    :class:`~flexkin.cosserat.RefinedSolution` (integrated again from its clamps).
+
+    Parameters
+    ----------
+    refined : RefinedSolution
+        A refined solution with ``reached`` true.
+    mech : Mechanism
+        Its mechanism.
+    refine_result : RefineResult
+        The refinement it belongs to (per-leg parameters and line loads).
+    n_points : int
+        Points per rod.
+
+    Returns
+    -------
+    list of ndarray
+    """
     from ..cosserat import rod_shape
 
     out = []
@@ -56,7 +72,23 @@ def plot_refinement(kirchhoff: Sequence[Any], refine_result: Any, path: str | Pa
                     per_page: int = PANELS_PER_PAGE) -> list[Any]:
     """Figures (pages) of the Kirchhoff solutions ``kirchhoff`` (the refined ones, in the order of
     ``refine_result.solutions``) with their refinements; saves every page when ``path`` is
-    given (the files are ``page_paths(path, len(figs))``)."""
+    given (the files are ``page_paths(path, len(figs))``).
+
+    Parameters
+    ----------
+    kirchhoff : sequence of Solution
+        The Kirchhoff solutions that were refined.
+    refine_result : RefineResult
+        Their refinement (:func:`flexkin.cosserat.refine`).
+    path : str or Path, optional
+        File of the first page.
+    per_page : int
+        Most panels on a page.
+
+    Returns
+    -------
+    list of matplotlib.figure.Figure
+    """
     from matplotlib.patches import Polygon
 
     mech = refine_result.mechanism

@@ -14,7 +14,19 @@ __all__ = ["plot_rod_solutions", "plot_rod_sweep", "plot_parameter_space"]
 def plot_rod_solutions(result, path: str | None = None) -> Any:
     """Deformed shapes of every equilibrium of a :class:`~flexkin.rod.RodInverseResult` (tip pinned,
     or clamped with ``result.tip_angle``: then the imposed tip tangent is drawn and the legend
-    gives the tip moment), numbered as in the ``flexkin rod`` table."""
+    gives the tip moment), numbered as in the ``flexkin rod`` table.
+
+    Parameters
+    ----------
+    result : RodInverseResult
+        The equilibria of one rod (:func:`flexkin.solve_rod`).
+    path : str, optional
+        Save the figure there.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     fig = new_figure(figsize=(6.4, 5.2), layout="constrained")
     ax = fig.add_subplot()
     clamped = getattr(result, "tip_angle", None) is not None
@@ -49,6 +61,17 @@ def plot_rod_sweep(sweep, path: str | None = None) -> Any:
     Top row: every branch (symmetric-log force axis, since the looped branches carry forces
     two orders of magnitude above the others).  Bottom row: linear axes restricted to the
     branch of least mean energy, the one a bench realises by continuity.
+
+    Parameters
+    ----------
+    sweep : RodSweep
+        The branches of :func:`flexkin.rod.sweep.rod_sweep`.
+    path : str, optional
+        Save the figure there.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
     fig = new_figure(figsize=(10.0, 7.5), layout="constrained")
     axes = fig.subplots(2, 2, sharex=True)
@@ -92,6 +115,21 @@ def plot_parameter_space(mode: int = 1, quantity: str = "R", path: str | None = 
     sampled on regular pixel grids (``n`` x ``n``), so no mesh edges or thin distorted quads
     alias into moiré; in the (k, psi) panel the band ``|k| < k_min = |cos psi/2|``, where no
     rod exists, is left blank.
+
+    Parameters
+    ----------
+    mode : int
+        d-mode of the rods drawn.
+    quantity : {"R", "y"}
+        What the colours show.
+    path : str, optional
+        Save the figure there.
+    n : int
+        Pixels per side of each panel (>= 8).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
     from ..rod.closed_form import tip_unit, to_unified
 

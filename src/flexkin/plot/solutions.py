@@ -24,7 +24,19 @@ PANELS_PER_PAGE = 20
 
 
 def page_paths(path: str | Path, n_pages: int) -> list[Path]:
-    """File names of ``n_pages`` pages: ``path`` itself, then ``stem_2.ext``, ``stem_3.ext``, ..."""
+    """File names of ``n_pages`` pages: ``path`` itself, then ``stem_2.ext``, ``stem_3.ext``, ...
+
+    Parameters
+    ----------
+    path : str or Path
+        File of the first page.
+    n_pages : int
+        Number of pages.
+
+    Returns
+    -------
+    list of Path
+    """
     p = Path(path)
     return [p] + [p.with_name(f"{p.stem}_{k}{p.suffix}") for k in range(2, n_pages + 1)]
 
@@ -43,8 +55,23 @@ def _ids(sols) -> str:
 
 def plot_solution_pages(result, per_page: int | None = None, ncols: int | None = None,
                         zoom: bool = False) -> list[Any]:
-    """One Figure per page of at most ``per_page`` panels (default :data:`PANELS_PER_PAGE`; one page
-    for an empty result)."""
+    """One Figure per page of at most ``per_page`` panels (one page for an empty result).
+
+    Parameters
+    ----------
+    result : KinematicsResult
+        The solutions to draw.
+    per_page : int, optional
+        Most panels on a page (default :data:`PANELS_PER_PAGE`).
+    ncols : int, optional
+        Panels per row (default up to 5).
+    zoom : bool
+        Zoom each panel on its rods.
+
+    Returns
+    -------
+    list of matplotlib.figure.Figure
+    """
     per_page = PANELS_PER_PAGE if per_page is None else int(per_page)
     if per_page < 1:
         raise ValueError(f"per_page must be >= 1, got {per_page!r}")
@@ -88,8 +115,25 @@ def plot_solution_pages(result, per_page: int | None = None, ncols: int | None =
 
 
 def write_solution_pages(result, path: str | Path, per_page: int | None = None, **kwargs: Any) -> list[Path]:
-    """Draw every solution of ``result`` and save the pages (:func:`page_paths`); returns the files
-    written, first page first.  Stale further pages of an earlier, longer run are not removed."""
+    """Draw every solution of ``result`` and save the pages (:func:`page_paths`).  Stale further
+    pages of an earlier, longer run are not removed.
+
+    Parameters
+    ----------
+    result : KinematicsResult
+        The solutions to draw.
+    path : str or Path
+        File of the first page.
+    per_page : int, optional
+        Most panels on a page (default :data:`PANELS_PER_PAGE`).
+    **kwargs
+        Passed to :func:`plot_solution_pages` (``ncols``, ``zoom``).
+
+    Returns
+    -------
+    list of Path
+        The files written, first page first.
+    """
     figs = plot_solution_pages(result, per_page=per_page, **kwargs)
     files = page_paths(path, len(figs))
     for fig, f in zip(figs, files):
@@ -103,7 +147,25 @@ def plot_solutions(result, path: str | None = None, per_page: int | None = None,
 
     Panels are numbered with the solutions' ids, titled with the d-modes (coloured by
     combination) and the stability verdict.  With ``path`` every page is saved
-    (:func:`write_solution_pages`).  Returns the Figure of the first page.
+    (:func:`write_solution_pages`).
+
+    Parameters
+    ----------
+    result : KinematicsResult
+        The solutions to draw.
+    path : str, optional
+        File of the first page.
+    per_page : int, optional
+        Most panels on a page (default :data:`PANELS_PER_PAGE`).
+    ncols : int, optional
+        Panels per row (default up to 5).
+    zoom : bool
+        Zoom each panel on its rods.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The first page.
     """
     figs = plot_solution_pages(result, per_page=per_page, ncols=ncols, zoom=zoom)
     if path:

@@ -188,7 +188,20 @@ class PathResult(Result):
         return "\n".join(lines)
 
     def plot(self, path: str | None = None, **kwargs: Any):
-        """Inputs, Jacobian determinants and stability margin against the path parameter."""
+        """Inputs, singularity functions, Jacobian determinants and stability margin against the
+        path parameter (:func:`~flexkin.plot.path.plot_path`).
+
+        Parameters
+        ----------
+        path : str, optional
+            Save the figure there.
+        **kwargs
+            Passed to :func:`~flexkin.plot.path.plot_path`.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
         from ..plot.path import plot_path
 
         return plot_path(self, path=path, **kwargs)
