@@ -151,16 +151,10 @@ def plot_solutions(result, path: str | None = None, per_page: int | None = None,
 
     Parameters
     ----------
-    result : KinematicsResult
-        The solutions to draw.
+    result, per_page, ncols, zoom
+        As in :func:`plot_solution_pages`.
     path : str, optional
         File of the first page.
-    per_page : int, optional
-        Most panels on a page (default :data:`PANELS_PER_PAGE`).
-    ncols : int, optional
-        Panels per row (default up to 5).
-    zoom : bool
-        Zoom each panel on its rods.
 
     Returns
     -------
