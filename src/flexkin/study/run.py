@@ -287,7 +287,7 @@ def run_study(spec_or_path: StudySpec | str | os.PathLike[str] | Mapping[str, An
         from tqdm.auto import tqdm
 
         bar = tqdm(total=len(todo) + reused, initial=reused, desc=f"study {spec.name}", unit="row", file=sys.stderr,
-                   dynamic_ncols=True, leave=False)
+                   dynamic_ncols=True, leave=False, mininterval=0, miniters=1)  # every row is drawn
 
     def finish(task: DesignTask, row: dict[str, Any], keep: bool) -> None:
         if keep:
