@@ -152,3 +152,202 @@ def test_cli_workspace_json_and_plot(examples_dir, tmp_path):
     asp = d["workspaces"][0]["aspects"][0]
     assert asp["cells"] > 20 and asp["modes"]
     assert out.stat().st_size > 10_000
+
+
+# ---- constrained workspaces, grid edge, stability along the wave, metrics (issues 13, 15, 18) ----
+def _mech_2pl(radius=0.01, max_strain=0.03):
+    """A 2P+L design (legs 1-2 prismatic, leg 3 pushes its rod out of a fixed guide) with
+    narrow strokes, a rod radius and a strain limit, so that a workspace crosses all three."""
+    d = {"name": "2P+L test", "rod": {"length": 1.0, "EI": 1.0, "radius": radius},
+         "platform": {"attach": [[-0.21650635094610965, -0.125], [0.21650635094610965, -0.125], [0.0, 0.25]]},
+         "leg": [{"actuation": "prismatic", "origin": [-0.8660254037844386, -0.5], "angle": 0.0, "range": [-0.5, 0.1]},
+                 {"actuation": "prismatic", "origin": [0.8660254037844386, -0.5], "angle": 120.0, "range": [-0.5, 0.1]},
+                 {"actuation": "length", "origin": [0.0, 1.0], "angle": 270.0, "range": [0.5, 1.1]}],
+         "limits": {"max_strain": max_strain}}
+    return flexkin.mechanism_from_dict(d)
+
+
+TH15 = np.radians(15.0)
+BOX = (-0.64, 0.64, -0.64, 0.64)
+
+
+@pytest.fixture(scope="module")
+def pl_pair():
+    mech = _mech_2pl()
+    free = workspace(mech, TH15, step=0.04, bounds=BOX, all_aspects=False)
+    cons = workspace(mech, TH15, step=0.04, bounds=BOX, all_aspects=False, constrained=True)
+    return mech, free, cons
+
+
+def _independent_violations(mech, sol):
+    """Range and strain verdicts of one solution by explicit comparisons and the feasibility module."""
+    bad_range = any(not (lo - 1e-12 <= u <= hi + 1e-12) for u, (lo, hi) in
+                    zip(sol.inputs, [leg.range for leg in mech.legs]))
+    strain = max(float(np.max(np.abs(r.curvature(2001)))) * mech.legs[i].rod.radius for i, r in enumerate(sol.rods))
+    return bad_range, strain
+
+
+def test_unconstrained_map_marks_the_infeasible_cells(pl_pair):
+    """Without constraints every stable cell is reached, and its violations agree with an
+    independent check: explicit range comparisons and the strain from dense curvature samples."""
+    mech, free, _ = pl_pair
+    mp = free.maps[0]
+    r = mp.reached
+    bad = r & (mp.violations != 0)
+    assert r.sum() > 100 and 0.1 < bad.sum() / r.sum() < 0.95  # a real mix: the old maps reported all of them
+    rng = np.random.default_rng(11)
+    jj, ii = np.nonzero(r)
+    for k in rng.choice(len(jj), 20, replace=False):
+        sol = free.solution(mech, 0, jj[k], ii[k])
+        bad_range, strain = _independent_violations(mech, sol)
+        assert bool(mp.violations[jj[k], ii[k]] & 1) == bad_range
+        assert mp.strain[jj[k], ii[k]] == pytest.approx(strain, rel=1e-5)
+        if abs(strain - mech.max_strain) > 1e-4:
+            assert bool(mp.violations[jj[k], ii[k]] & 2) == (strain > mech.max_strain)
+    # feasible cells next to infeasible ones are the infeasible boundary
+    assert mp.boundary_infeasible.sum() > 0
+    assert not np.any(mp.boundary_infeasible & (mp.violations != 0))
+    assert "constraints not applied" in free.summary() and "ranges, strain" in free.region
+
+
+def test_constrained_wave_stops_at_infeasible_cells(pl_pair):
+    mech, free, cons = pl_pair
+    mp, mf = cons.maps[0], free.maps[0]
+    r = mp.reached
+    assert r.sum() > 20
+    assert np.all(mp.violations[r] == 0)               # only feasible cells are reached ...
+    assert np.all(mf.reached[r])                       # ... all of them reached without constraints too
+    assert r.sum() < mf.reached.sum()
+    assert mp.boundary_infeasible.sum() > 0 and np.any(mp.status == 5)
+    for (j, i) in zip(*np.nonzero(mp.status == 5)):   # refused cells carry the reason
+        assert mp.violations[j, i] != 0
+    # every input of every reached cell in range (the old maps: only a fraction)
+    for k, leg in enumerate(mech.legs):
+        lo, hi = leg.range
+        u = mp.inputs[..., k][r]
+        assert np.all((u >= lo - 1e-12) & (u <= hi + 1e-12))
+    assert "feasible only" in cons.region and "feasible only" in cons.summary()
+    met = cons.metrics()
+    assert met["region"] == cons.region and met["feasible_area"] == pytest.approx(met["workspace_area"])
+
+
+def test_peak_curvature_of_cells_matches_dense_samples(rfr, rfr_ws):
+    from flexkin.solve.workspace import cell_peak_curvature
+    from flexkin.system import System
+
+    mp = rfr_ws.maps[0]
+    jj, ii = np.nonzero(mp.reached)
+    sel = np.random.default_rng(5).choice(len(jj), 12, replace=False)
+    system = System.from_mechanism(rfr)
+    for k in sel:
+        sol = rfr_ws.solution(rfr, 0, jj[k], ii[k])
+        x = np.array(sol.x)[None]
+        kc = cell_peak_curvature(system, rfr, x, np.array(sol.charts)[None])[0]
+        dense = [float(np.max(np.abs(r.curvature(4001)))) for r in sol.rods]
+        assert np.allclose(kc, dense, rtol=1e-5, atol=1e-9)
+
+
+def test_region_cut_by_given_bounds_is_marked_and_default_bounds_grow():
+    """unit 3-PFR at 20 deg: a box smaller than the region cuts it (grid-edge cells, message);
+    with default bounds the grid grows until the region closes."""
+    mech = flexkin.load_mechanism(os.path.join(os.path.dirname(__file__), "..", "examples", "unit_3pfr.toml"))
+    cut = workspace(mech, TH, step=0.1, bounds=(-0.3, 0.3, -0.3, 0.3), all_aspects=False)
+    mp = cut.maps[0]
+    assert mp.cut_by_grid and mp.boundary_edge.sum() >= 5
+    assert np.array_equal(mp.boundary_edge[1:-1, 1:-1], np.zeros((len(cut.y) - 2, len(cut.x) - 2), bool))
+    assert "grid's edge" in cut.message and cut.metrics()["cut_by_grid"]
+    small = workspace(mech, TH, step=0.1, bounds=(-0.3, 0.3, -0.3, 0.3), all_aspects=False, grow=3)
+    assert small.grown >= 1
+    sm = small.maps[0]
+    assert not sm.cut_by_grid and not small.metrics()["cut_by_grid"]
+    assert sm.area_cells > mp.area_cells
+    # the grown grid contains the cut one, on the same lattice: the cut region is part of the closed one
+    i = int(round((cut.x[0] - small.x[0]) / small.step))
+    j = int(round((cut.y[0] - small.y[0]) / small.step))
+    assert np.all(sm.reached[j:j + len(cut.y), i:i + len(cut.x)][mp.reached])
+
+
+def test_stability_along_the_wave_equals_the_full_check(rfr, rfr_ws):
+    """The sign of det A_FK carried along the wave gives the same map as the whole second
+    variation at every cell (paper §6: instability and FK singularity coincide)."""
+    full = workspace(rfr, TH, step=0.03, bounds=(-0.6, 0.6, -0.6, 0.6), all_aspects=False, stability="full")
+    a, b = rfr_ws.maps[0], full.maps[0]
+    assert np.array_equal(a.status, b.status)
+    assert np.array_equal(a.boundary_fk, b.boundary_fk) and np.array_equal(a.boundary_ik, b.boundary_ik)
+    assert np.all(np.isfinite(b.margin[b.reached])) and np.all(b.margin[b.reached] > 0)
+    # margins filled in afterwards equal those of the full wave
+    filled = rfr_ws.margins(rfr)[0]
+    assert np.allclose(filled[a.reached], b.margin[b.reached], rtol=1e-9, atol=1e-12)
+    with pytest.raises(ValueError, match="stability"):
+        workspace(rfr, TH, stability="sometimes")
+
+
+def test_metrics(rfr, rfr_ws):
+    met = rfr_ws.metrics(rfr)
+    h2 = rfr_ws.step ** 2
+    assert met["aspect_areas"] == [m.area_cells * h2 for m in rfr_ws.maps]
+    assert met["singularity_free_area"] == max(met["aspect_areas"])
+    assert met["workspace_area"] == pytest.approx(rfr_ws.union().sum() * h2)
+    sm = met["stability_margin"]
+    assert 0 < sm["min"] <= sm["mean"] <= sm["max"]
+    assert 0 < met["det_ik_ratio"] <= 1 and 0 < met["det_fk_ratio"] <= 1
+    assert met["max_strain"] is None  # no radius: no strain
+    json.dumps(met)
+
+
+def _scaled(d, s):
+    d = json.loads(json.dumps(d))
+    d["rod"]["length"] *= s
+    d["platform"]["attach"] = [[s * a for a in p] for p in d["platform"]["attach"]]
+    for leg in d["leg"]:
+        leg["origin"] = [s * a for a in leg["origin"]]
+    return d
+
+
+def test_areas_scale_as_s_squared(examples_dir):
+    """Every length x s (EI kept, no load): the equilibria are the scaled ones, so the same
+    cells are reached on the scaled grid and every area is multiplied by s^2."""
+    import tomllib
+
+    d = tomllib.loads((examples_dir / "unit_3rfr.toml").read_text())
+    s = 2.5
+    ws = [workspace(flexkin.mechanism_from_dict(_scaled(d, f)), TH, step=0.05 * f,
+                    bounds=tuple(f * b for b in (-0.6, 0.6, -0.6, 0.6)), all_aspects=False) for f in (1.0, s)]
+    m0, m1 = (w.metrics() for w in ws)
+    assert np.array_equal(ws[0].maps[0].status, ws[1].maps[0].status)
+    assert m1["workspace_area"] == pytest.approx(s * s * m0["workspace_area"], rel=1e-12)
+    assert m1["singularity_free_area"] == pytest.approx(s * s * m0["singularity_free_area"], rel=1e-12)
+
+
+def test_c3_symmetry_of_the_symmetric_3rfr_union_and_dexterous_workspace():
+    """symmetric_mechanism('revolute'): the union of all aspects at theta and the dexterous
+    workspace over a C3-symmetric set of orientations map onto themselves under 120 deg."""
+    from flexkin.mechanism import symmetric_mechanism
+    from flexkin.solve.workspace import dexterous_workspace
+
+    mech = symmetric_mechanism("revolute")
+    box = (-0.6, 0.6, -0.6, 0.6)
+
+    def c3_fraction(x, y, mask, h):
+        jj, ii = np.nonzero(mask)
+        pts = np.stack([x[ii], y[jj]], -1)
+        c, s = np.cos(2 * np.pi / 3), np.sin(2 * np.pi / 3)
+        rot = pts @ np.array([[c, s], [-s, c]])
+        d = np.min(np.linalg.norm(rot[:, None, :] - pts[None, :, :], axis=2), axis=1)
+        return len(pts), float(np.mean(d <= 1.5 * h))
+
+    ws = workspace(mech, TH, step=0.04, bounds=box)
+    n, frac = c3_fraction(ws.x, ws.y, ws.union(), ws.step)
+    assert n > 100 and frac >= 0.97
+    dx = dexterous_workspace(mech, TH + np.radians([-5.0, 0.0, 5.0]), step=0.04, bounds=box)
+    single = [w.union().sum() for w in dx.workspaces]
+    assert 0 < dx.mask.sum() <= min(single)
+    assert dx.area == pytest.approx(dx.mask.sum() * dx.step ** 2)
+    n, frac = c3_fraction(dx.x, dx.y, dx.mask, dx.step)
+    assert frac >= 0.95
+    # intersection by coordinates, cell by cell
+    for w in dx.workspaces:
+        jj, ii = np.nonzero(dx.mask)
+        i = np.round((dx.x[ii] - w.x[0]) / w.step).astype(int)
+        j = np.round((dx.y[jj] - w.y[0]) / w.step).astype(int)
+        assert np.all(w.union()[j, i])
