@@ -210,6 +210,25 @@ def test_hard_cases_are_present():
     assert any(abs(r.tip_moment) > 1e-6 for s in cl.solutions for r in s.rods)
 
 
+def test_path_tracker_and_workspace_solutions_verified():
+    """Paths, the tracker and workspaces report their solutions through the same builder."""
+    from flexkin.solve.track import Tracker
+
+    mech = symmetric_mechanism("revolute")
+    start, end = (0.0, 0.0, 0.1), (0.06, -0.04, 0.1)
+    path = flexkin.follow_path(mech, start, end, steps=6)
+    sols = path.sample_solutions()
+    assert len(sols) == 7 and all(s.verified and s.condition >= 1.0 for s in sols)
+    assert any(1 in s.charts for s in sols)   # rods straight under tension: the seam chart
+    step = Tracker(mech, sols[0]).move_to(sols[1].pose)
+    assert step.reached and step.solution.verified and 1 in step.solution.charts
+    step = Tracker(mech, sols[-1]).move_to(np.array(sols[0].inputs), kind="inputs")
+    assert step.fraction > 0 and step.solution.verified
+    ws = flexkin.workspace(mech, 0.1, step=0.1, bounds=(-0.3, 0.3, -0.3, 0.3), all_aspects=False)
+    j, i = np.argwhere(ws.maps[0].reached)[0]
+    assert ws.solution(mech, 0, int(j), int(i)).verified
+
+
 # ---- 3. a corrupted solution is flagged, not dropped -----------------------------------------
 @pytest.mark.parametrize("column", ["rod", "pose", "input"])
 def test_corrupted_solution_flagged(column):

@@ -63,7 +63,7 @@ from scipy.integrate._ivp.dop853_coefficients import E3 as _E3, E5 as _E5
 from ..core.geometry2d import rotate, wrap_to_pi
 from ..core.jit import njit
 from ..cosserat._dop853 import A as _A, B as _B, STAGES
-from ..rod.closed_form import standard_chart
+from ..rod.closed_form import SEAM_OFFSET, is_seam, standard_chart
 from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, profile
 from ..system import System
 from .jacobian import system_blocks
@@ -364,8 +364,9 @@ def _nodes(system: System, X: NDArray, charts: NDArray, w: dict[str, NDArray], A
     z = np.stack([system.rod_x(X, i) for i in range(3)], axis=1).reshape(-1, 3)
     ch = np.asarray(charts, np.int64).reshape(-1).copy()
     seam = ch == CHART_SEAM
-    if np.any(seam):   # the profile is evaluated in the unified chart
-        z[seam, 0], z[seam, 1] = standard_chart(z[seam, 0], z[seam, 1])
+    if np.any(seam):   # the profile is evaluated in the unified chart; seam pairs are stored raw
+        z1 = np.where(is_seam(z[seam, 1]), z[seam, 1], z[seam, 1] + SEAM_OFFSET)   # or offset-encoded
+        z[seam, 0], z[seam, 1] = standard_chart(z[seam, 0], z1)
         ch[seam] = CHART_UNIFIED
     _interior_nodes(ch, z, offsets, nodes)
     return nodes, offsets
