@@ -47,6 +47,8 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
+from numba import prange
+
 from ..core.jit import njit
 from ..core.linalg_threads import single_threaded_blas
 from ..results import Stability
@@ -180,11 +182,134 @@ def _angles(chart, z, alpha, s, out) -> None:
                 out[k, i, j] = alpha[k, i] + th[j]
 
 
-def _spectrum(system: System, X: NDArray, charts: NDArray, N: int, coarse: int | None = None
-              ) -> tuple[NDArray, NDArray] | tuple[NDArray, NDArray, NDArray]:
+@njit
+def _project(Q, C, B) -> int:
+    """``Q`` (p, p) restricted to the null space of ``C`` (m, p) in an orthonormal basis: written
+    to ``B[:p - r, :p - r]``; returns the rank ``r`` of the constraints.  ``Q`` is overwritten.
+
+    Rank-revealing: the constraints are the right singular vectors of ``C`` with singular
+    value above ``RANK_RTOL`` times the largest (a vacuous constraint, such as a straight rod's
+    axial one, is dropped).  Their orthogonal complement is spanned by the trailing columns of
+    the Householder reflectors of their QR factorisation, so the projected matrix is the
+    trailing block of ``H^T Q H``, updated in place at ``O(m p^2)`` cost.
+    """
+    m, p = C.shape
+    _, sv, Vt = np.linalg.svd(C, full_matrices=False)
+    r = 0
+    for j in range(sv.shape[0]):
+        if sv[j] > RANK_RTOL * sv[0]:
+            r += 1
+    V = np.ascontiguousarray(Vt[:r].T)        # (p, r) orthonormal constraint directions
+    v = np.empty(p)
+    wv = np.empty(p)
+    for j in range(r):
+        nrm = 0.0
+        for a in range(j, p):
+            nrm += V[a, j] * V[a, j]
+        nrm = math.sqrt(nrm)
+        alpha = -nrm if V[j, j] >= 0.0 else nrm
+        for a in range(j, p):
+            v[a] = V[a, j]
+        v[j] -= alpha
+        vv = 0.0
+        for a in range(j, p):
+            vv += v[a] * v[a]
+        if vv == 0.0:
+            continue
+        tau = 2.0 / vv
+        for c in range(j + 1, r):             # the remaining constraint columns
+            t = 0.0
+            for a in range(j, p):
+                t += v[a] * V[a, c]
+            t *= tau
+            for a in range(j, p):
+                V[a, c] -= t * v[a]
+        # Q[j:, j:] <- P Q[j:, j:] P with P = I - tau v v^T: Q - v q^T - q v^T
+        kk = 0.0
+        for a in range(j, p):
+            t = 0.0
+            for b in range(j, p):
+                t += Q[a, b] * v[b]
+            wv[a] = tau * t
+            kk += v[a] * wv[a]
+        kk *= 0.5 * tau
+        for a in range(j, p):
+            wv[a] -= kk * v[a]
+        for a in range(j, p):
+            for b in range(j, p):
+                Q[a, b] -= v[a] * wv[b] + wv[a] * v[b]
+    for a in range(p - r):
+        for b in range(a, p - r):
+            t = 0.5 * (Q[r + a, r + b] + Q[r + b, r + a])
+            B[a, b] = t
+            B[b, a] = t
+    return r
+
+
+
+
+def _spectra(ch, z, alpha, force, ell, e, arm, clamped, psi, w, K, tip, s, coarse, ev, evc, scale) -> None:
+    """Per equilibrium ``k`` (in parallel over the cores): the tangent angles at the quadrature
+    nodes, the second variation and its constraints (:func:`_assemble`), and the lowest
+    eigenvalues on the admissible subspace (:func:`_project`) with ``N`` modes per rod
+    (``ev[k]``) and with the nested first ``coarse`` modes (``evc[k]``); ``scale[k]`` is the
+    largest diagonal entry."""
+    n = z.shape[0]
+    N, nq = psi.shape
+    p = 3 * N + 3
+    m = 6
+    for i in range(3):
+        if clamped[i]:
+            m += 1
+    pc = 3 * coarse + 3
+    keep = np.empty(pc, np.int64)
+    for i in range(3):
+        for a in range(coarse):
+            keep[i * coarse + a] = i * N + a
+    for a in range(3):
+        keep[3 * coarse + a] = 3 * N + a
+    for k in prange(n):
+        theta = np.empty((3, nq))
+        th = np.empty(nq)
+        Q = np.empty((p, p))
+        C = np.empty((m, p))
+        Qc = np.empty((pc, pc))
+        Cc = np.empty((m, pc))
+        for i in range(3):
+            tangents(ch[k, i], z[k, i], s, th)
+            for j in range(nq):
+                theta[i, j] = alpha[k, i] + th[j]
+        _assemble(theta, force[k], ell[k], e, arm[k], clamped, psi, w, K, tip, Q, C)
+        sc = 0.0
+        for a in range(p):
+            sc = max(sc, abs(Q[a, a]))
+        scale[k] = sc
+        for a in range(pc):
+            for b in range(pc):
+                Qc[a, b] = Q[keep[a], keep[b]]
+            for r in range(m):
+                Cc[r, a] = C[r, keep[a]]
+        B = np.empty((p, p))
+        r = _project(Q, C, B)
+        e1 = np.linalg.eigvalsh(B[:p - r, :p - r].copy())
+        ev[k, :] = e1[:p - m]
+        r = _project(Qc, Cc, B)
+        e2 = np.linalg.eigvalsh(B[:pc - r, :pc - r].copy())
+        evc[k, :] = e2[:pc - m]
+
+
+#: the same kernel compiled twice: threads over the equilibria pay off from this many on
+PARALLEL_MIN = 24
+_spectra_serial = njit(_spectra)
+_spectra_parallel = njit(parallel=True)(_spectra)
+
+
+def _spectrum(system: System, X: NDArray, charts: NDArray, N: int, coarse: int
+              ) -> tuple[NDArray, NDArray, NDArray]:
     """Eigenvalues (n, p - m), ascending, of the discretised second variation with ``N`` modes
-    per rod, and the scale of its diagonal; with ``coarse``, also the eigenvalues with the first
-    ``coarse`` modes of each rod (a nested subspace: the same quadrature, a sub-basis)."""
+    per rod, the scale of its diagonal, and the eigenvalues with the first ``coarse`` modes of
+    each rod (a nested subspace: the same quadrature, a sub-basis); compiled per equilibrium
+    (:func:`_spectra`)."""
     bs = basis(N)
     n = len(X)
     lay = system.layout
@@ -199,46 +324,21 @@ def _spectrum(system: System, X: NDArray, charts: NDArray, N: int, coarse: int |
             z[seam, i, 0], z[seam, i, 1] = v, ph
             ch[seam, i] = CHART_UNIFIED
     _, alpha, L = system.clamps(X[:, lay.inputs])
-    theta = np.empty((n, 3, len(bs.s)))
-    _angles(ch, z, alpha, bs.s, theta)
     w = system.rod_world(X, charts)
-    force = w["force"] / system.F_ref
+    force = np.ascontiguousarray(w["force"] / system.F_ref)
     arm = (system.platform_points(X[:, lay.pose]) - X[:, None, lay.pose.start:lay.pose.start + 2]) / system.L_ref
     ell = L / system.L_ref
     e = system.EI / system.EI_ref
-    clamped = system.clamped
-    p = 3 * N + 3
+    clamped = np.asarray(system.clamped, dtype=np.bool_)
     m = 6 + int(np.count_nonzero(clamped))
-    Q = np.empty((n, p, p))
-    C = np.empty((n, m, p))
-    for k in range(n):
-        _assemble(theta[k], force[k], ell[k], e, arm[k], clamped, bs.psi, bs.w, bs.K, bs.tip, Q[k], C[k])
-    scale = np.max(np.abs(np.diagonal(Q, axis1=1, axis2=2)), axis=1)
-    ev = _constrained_eigvals(Q, C)
-    if coarse is None:
-        return ev, scale
-    keep = np.r_[np.concatenate([np.arange(i * N, i * N + coarse) for i in range(3)]), 3 * N + np.arange(3)]
-    evc = _constrained_eigvals(Q[:, keep][:, :, keep], C[:, :, keep])
+    ev = np.empty((n, 3 * N + 3 - m))
+    evc = np.empty((n, 3 * coarse + 3 - m))
+    scale = np.empty(n)
+    kernel = _spectra_parallel if n >= PARALLEL_MIN else _spectra_serial
+    kernel(ch, z, np.ascontiguousarray(alpha, dtype=float), force, np.ascontiguousarray(ell, dtype=float),
+             np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(arm), clamped, bs.psi, bs.w, bs.K, bs.tip,
+             bs.s, int(coarse), ev, evc, scale)
     return ev, scale, evc
-
-
-def _constrained_eigvals(Q: NDArray, C: NDArray) -> NDArray[np.float64]:
-    """Eigenvalues of each ``Q`` on the null space of its ``C`` (rank-revealing: a vacuous
-    constraint, such as a straight rod's axial one, is dropped); rows padded with ``inf``."""
-    n, m, p = C.shape
-    _, sv, Vt = np.linalg.svd(C, full_matrices=True)
-    rank = np.sum(sv > RANK_RTOL * sv[:, :1], axis=1)
-    ev = np.full((n, p - m), np.inf)
-    full = rank == m
-    if np.any(full):
-        Z = np.swapaxes(Vt[full, m:, :], 1, 2)            # orthonormal basis of the null space
-        A = np.swapaxes(Z, 1, 2) @ Q[full] @ Z
-        ev[full] = np.linalg.eigvalsh(0.5 * (A + np.swapaxes(A, 1, 2)))
-    for k in np.flatnonzero(~full):
-        Z = Vt[k, rank[k]:, :].T
-        A = Z.T @ Q[k] @ Z
-        ev[k] = np.linalg.eigvalsh(0.5 * (A + A.T))[:p - m]
-    return ev
 
 
 @dataclass(frozen=True)
@@ -403,12 +503,11 @@ def rod_stability(rod: RodState, tip: str = "pinned", slider_angle: float | None
                     rows.append(bs.tip)
                 if rows:
                     Cm = np.array(rows)
-                    _, sv, Vt = np.linalg.svd(Cm, full_matrices=True)
-                    Z = Vt[int(np.sum(sv > RANK_RTOL * sv[0])):].T
-                    A = Z.T @ Q @ Z
+                    B = np.empty((len(Q), len(Q)))
+                    r = _project(np.array(Q), Cm, B)
+                    evs.append(np.linalg.eigvalsh(B[:len(Q) - r, :len(Q) - r]))
                 else:
-                    A = Q
-                evs.append(np.linalg.eigvalsh(0.5 * (A + A.T)))
+                    evs.append(np.linalg.eigvalsh(0.5 * (Q + Q.T)))
                 results.append(n_)
             ev1, ev2 = evs
             k = min(len(ev1), len(ev2), 6)

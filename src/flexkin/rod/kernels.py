@@ -328,9 +328,16 @@ def unified_tangents(v: float, phis: float, s: np.ndarray, out: np.ndarray) -> N
         return
     psi = 2.0 * math.atan2(ds, ku * math.sin(phis))
     phi = phis
+    s_prev = 0.0
+    sp = math.sin(phi)
+    d = ds
     for j in range(s.shape[0]):
         if s[j] > 0.0:
-            phi = inverse_f(Fs + Phi * s[j], m, kp2, K, phi)
+            # seed: second-order Taylor step of phi' = Phi Delta(phi), phi'' = -m Phi^2 sin cos
+            h = Phi * (s[j] - s_prev)
+            guess = phi + h * d - 0.5 * h * h * m * sp * math.cos(phi)
+            phi = inverse_f(Fs + Phi * s[j], m, kp2, K, guess)
+            s_prev = s[j]
         sp = math.sin(phi)
         d = math.sqrt(math.cos(phi) ** 2 + kp2 * sp * sp)
         out[j] = psi + 2.0 * math.atan2(-d, ku * sp)
