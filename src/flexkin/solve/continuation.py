@@ -22,6 +22,7 @@ rod chart, so a rod changes mode continuously.  Pinned rods close to straight un
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 from ..core.jit import njit
@@ -190,6 +191,8 @@ def to_working_charts(system: System, X: NDArray, charts: NDArray) -> tuple[NDAr
     """
     X = np.array(X, dtype=float)
     charts = np.array(charts, dtype=np.int64)
+    if not _switch_needed(X, charts, system.rod_col):
+        return X, charts
     for i in range(3):
         c = system.layout.rod[i].start
         z0, z1 = X[:, c], X[:, c + 1]
@@ -210,6 +213,29 @@ def to_working_charts(system: System, X: NDArray, charts: NDArray) -> tuple[NDAr
     return X, charts
 
 
+@njit(cache=True)
+def _switch_needed(X, charts, rod_col) -> bool:
+    """Whether :func:`to_working_charts` moves any rod (the common case is none)."""
+    for k in range(X.shape[0]):
+        for i in range(3):
+            z0 = X[k, rod_col[i]]
+            z1 = X[k, rod_col[i] + 1]
+            if charts[k, i] == CHART_UNIFIED:
+                if abs(z0) > SEAM_IN and z1 > 1e-6 and z1 < 0.5 * np.pi - 1e-12:
+                    return True
+            elif charts[k, i] == CHART_SEAM:
+                return True
+    return False
+
+
+@lru_cache(maxsize=64)
+def _columns(system: System, fixed: str) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+    """Solved columns, parameter columns and input scales of a system (cached per system)."""
+    lay = system.layout
+    sl = lay.pose if fixed == "pose" else lay.inputs
+    return lay.columns(fixed), np.arange(sl.start, sl.stop, dtype=np.int64), system.input_scale()
+
+
 def continue_ik(system: System, X: NDArray, charts: NDArray, pose1: NDArray, load: NDArray,
                 chord_iter: int = 6, newton_iter: int = 5, fixed: str = "pose"
                 ) -> tuple[NDArray, NDArray, NDArray[np.bool_]]:
@@ -224,13 +250,11 @@ def continue_ik(system: System, X: NDArray, charts: NDArray, pose1: NDArray, loa
     P1 = np.ascontiguousarray(np.atleast_2d(pose1), dtype=float)
     load = np.asarray(load, dtype=float)
     ok = np.zeros(len(X), bool)
-    lay = system.layout
-    cols = lay.columns(fixed)
-    sl = lay.pose if fixed == "pose" else lay.inputs
-    pcols = np.arange(sl.start, sl.stop, dtype=np.int64)
-    su = system.input_scale()
+    cols, pcols, su = _columns(system, fixed)
     X0 = X.copy()
     continue_kernel(*system.args(), X, charts, P1, load, cols, pcols, su, RESIDUAL_TOL, chord_iter, newton_iter, ok)
+    if ok.all():
+        return X, charts, ok
     near = ~ok & _near_seam(system, X0, charts)
     if np.any(near):
         idx = np.flatnonzero(near)
