@@ -37,6 +37,17 @@ def new_figure(**kwargs: Any):
     return Figure(**kwargs)
 
 
-def save(fig, path) -> None:
-    """Save a figure with the house settings."""
-    fig.savefig(path, dpi=150, bbox_inches="tight")
+def save(fig, path, tight: bool = True) -> None:
+    """Save a figure with the house settings.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or path-like
+        Output file; the format follows the extension.
+    tight : bool
+        Crop to the drawn content (one more drawing pass; figures laid out on a fixed grid
+        do without).
+    """
+    fig.savefig(path, dpi=150, bbox_inches="tight" if tight else None)
