@@ -351,3 +351,17 @@ def test_c3_symmetry_of_the_symmetric_3rfr_union_and_dexterous_workspace():
         i = np.round((dx.x[ii] - w.x[0]) / w.step).astype(int)
         j = np.round((dx.y[jj] - w.y[0]) / w.step).astype(int)
         assert np.all(w.union()[j, i])
+
+
+def test_merged_aspect_holds_the_region_of_every_seed_it_merges(pl_pair):
+    """Seeds whose waves meet (same solution at a cell) are one aspect, and that aspect's map
+    holds the cells of all of them: the first seed's own map is inside it (before, the merged
+    map kept only the later seed's cells, stopped at the earlier region)."""
+    mech, free, _ = pl_pair
+    allw = workspace(mech, TH15, step=0.04, bounds=BOX)
+    first = free.maps[0]
+    mine = [mp for mp in allw.maps if first.seeds[0] in mp.seeds]
+    assert len(mine) == 1
+    assert np.all(mine[0].reached[first.reached])
+    assert mine[0].area_cells >= first.area_cells
+    assert sum(len(mp.seeds) for mp in allw.maps) == len({s for mp in allw.maps for s in mp.seeds})

@@ -787,6 +787,20 @@ def _propagate(m: System, x0: NDArray, c0: NDArray, seed_ij: tuple[int, int], X:
              "boundary_infeasible": binf}, steps, joins)
 
 
+def _merge_into(new: dict[str, NDArray], old: dict[str, NDArray]) -> None:
+    """Add to map ``new`` the cells of an earlier map ``old`` that it joined (the wave of
+    ``new`` stops where it meets ``old``'s solution, so together they are the aspect)."""
+    add = (old["status"] == REACHED) & (new["status"] != REACHED)
+    for name, a in new.items():
+        if name.startswith("boundary_"):
+            a |= old[name] & add
+        else:
+            a[add] = old[name][add]
+    reached = new["status"] == REACHED
+    for name in ("boundary_ik", "boundary_fk", "boundary_seam", "boundary_infeasible"):
+        new[name] &= reached
+
+
 def _map_all(m: System, starts: list[tuple[int, NDArray, NDArray]], ij: tuple[int, int], X: NDArray, Y: NDArray,
              th: float, w: NDArray, checks: _CellChecks, constrained: bool, full: bool,
              cb: Callable[[int], None] | None, deadline: float | None) -> tuple[list[WorkspaceMap], int]:
@@ -809,6 +823,8 @@ def _map_all(m: System, starts: list[tuple[int, NDArray, NDArray]], ij: tuple[in
         maps_k, n, joins = _propagate(m, x0, c0, (j0, i0), X, Y, th, w, claimed, checks, constrained, full, cb,
                                       deadline)
         total += n
+        for q in sorted(joins):
+            _merge_into(maps_k, raw[q])
         raw.append(maps_k)
         seeds.append([k])
         claimed.append((maps_k["status"], maps_k["sol"]))
