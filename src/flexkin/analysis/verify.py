@@ -36,9 +36,11 @@ reported, with ``verified = False``.
 large tension met in practice (``lambda L`` ~ 30: ``exp(30)`` ~ 1e13) would turn the rounding
 of an exact solution into a failed check.  Each rod is therefore shot in ``N = ceil(lambda L /
 3)`` equal segments (at least one): the first from the clamp with the reported base moment
-and tip force, each further one from the reported shape at its start (the closed-form
-profile, :func:`flexkin.rod.kernels.profile`), and every segment's end must meet the reported
-shape (the last one the reported tip point, tangent and moment).  The amplification is then
+and tip force, each further one from the reported tangent and moment at its start (the
+closed-form profile, :func:`flexkin.rod.kernels.profile`), and every segment's end must meet
+the reported tangent and moment (the last one the reported tip's).  The position is carried
+through from the clamp without restarts (it does not act back on the tangent and moment, so
+it amplifies nothing) and must end at the reported tip point.  The amplification is then
 at most ``exp(3)`` per segment; a rod with ``lambda L <= 3`` is shot in one piece.  The
 mismatches (position in ``L_ref``, tangent in rad, moment in ``F_ref L_ref``) join the
 residuals above.
@@ -188,33 +190,44 @@ def _shoot_rods(nodes, offsets, force, rtol, atol, hmax, max_steps, gap, counts,
 
     Rod ``r`` has the states ``nodes[offsets[r]:offsets[r + 1]]`` ``(x, y, th, m)`` at equally
     spaced arc lengths from its clamp (``s = 0``) to its tip (``s = 1``) and the tip force
-    ``force[r]`` (local frame, unit rod).  Every segment is integrated forward from its first
-    node.  Outputs: ``gap`` (n, 3), the largest mismatch at the segments' ends (position,
-    tangent, moment; NaN if an integration failed); ``counts`` (n,), the sign changes of the
-    moment strictly inside the rod, moments below ``MOMENT_RTOL * mmax`` counting as zero (-1
-    if an integration failed); ``mmax`` (n,), the largest moment met.
+    ``force[r]`` (local frame, unit rod).  Every segment is integrated forward from the tangent
+    and moment of its first node; the position is carried through from the clamp (it does not
+    act back on ``(th, m)``, so it amplifies nothing, and the interior nodes' positions are not
+    used).  Outputs: ``gap`` (n, 3), the mismatch of the position at the tip and the largest
+    mismatch of tangent and moment at the segments' ends (NaN if an integration failed);
+    ``counts`` (n,), the sign changes of the moment strictly inside the rod, moments below
+    ``MOMENT_RTOL * mmax`` counting as zero (-1 if an integration failed); ``mmax`` (n,), the
+    largest moment met.
     """
     buf = np.empty(max_steps + 1)
     ms = np.empty(max_steps + 1)
     y = np.empty(4)
+    y0 = np.empty(4)
     for r in range(offsets.shape[0] - 1):
         fx = force[r, 0]
         fy = force[r, 1]
         span = 1.0 / (offsets[r + 1] - offsets[r] - 1)
         gap[r, :] = 0.0
         n_ms = 0
+        y[0] = nodes[offsets[r], 0]
+        y[1] = nodes[offsets[r], 1]
         for k in range(offsets[r], offsets[r + 1] - 1):
-            nm = _dop853(nodes[k], fx, fy, 1.0, span, rtol, atol, hmax, max_steps, y, buf)
+            y0[0] = y[0]
+            y0[1] = y[1]
+            y0[2] = nodes[k, 2]
+            y0[3] = nodes[k, 3]
+            nm = _dop853(y0, fx, fy, 1.0, span, rtol, atol, hmax, max_steps, y, buf)
             if nm < 0 or n_ms + nm > ms.shape[0]:
                 n_ms = -1
                 break
             ms[n_ms:n_ms + nm] = buf[:nm]
             n_ms += nm
             e = nodes[k + 1]
-            gap[r, 0] = max(gap[r, 0], math.hypot(y[0] - e[0], y[1] - e[1]))
             d = y[2] - e[2]
             gap[r, 1] = max(gap[r, 1], abs(math.pi - ((math.pi - d) % (2.0 * math.pi))))
             gap[r, 2] = max(gap[r, 2], abs(y[3] - e[3]))
+        e = nodes[offsets[r + 1] - 1]
+        gap[r, 0] = math.hypot(y[0] - e[0], y[1] - e[1])
         if n_ms < 0:
             gap[r, :] = np.nan
             counts[r] = -1
