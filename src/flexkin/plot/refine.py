@@ -10,15 +10,14 @@ born at folds (they exist only in the refined model) get panels of their own.  P
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
 from .mechanism import plot_mechanism
-from .solutions import PANELS_PER_PAGE, page_paths
-from .style import new_figure, save
+from .solutions import PANELS_PER_PAGE, page_paths, panel_page, style_panel
+from .style import save
 
 __all__ = ["plot_refinement", "refined_rod_shapes"]
 
@@ -56,13 +55,16 @@ def refined_rod_shapes(refined: Any, mech: Any, refine_result: Any, n_points: in
     return out
 
 
-def _outcome(r: Any) -> str:
+def _outcome(r: Any, problem: str, unit: str) -> str:
+    """What happened to one solution: for IK (pose given) how far the inputs moved, for FK
+    (inputs given) how far the platform moved; the refined stability verdict."""
     if r.status in ("refined", "born", "unlisted") and r.reached:
-        st = "" if r.stable is None else (", stable" if r.stable else ", unstable")
-        if r.position_shift is not None:
-            return (f"{r.status}: moved {r.position_shift:.2g} m, {r.rotation_shift_deg:.2g}°{st}"
-                    if r.status == "refined" else f"{r.status}{st}")
-        return f"{r.status}{st}"
+        st = ", stability undecided" if r.stable is None else (", stable" if r.stable else ", unstable")
+        if r.status != "refined" or r.position_shift is None:
+            return f"{r.status}{st}"
+        if problem == "ik" and r.input_shift is not None:
+            return f"refined: |du| ≤ {max(abs(v) for v in r.input_shift):.2g}{unit}{st}"
+        return f"refined: moved {r.position_shift:.2g} m, {r.rotation_shift_deg:.2g}°{st}"
     if r.status == "fold":
         return f"fold at τ = {r.tau_end:.3g}: merged, gone"
     return f"{r.status} at τ = {r.tau_end:.3g}"
@@ -98,14 +100,12 @@ def plot_refinement(kirchhoff: Sequence[Any], refine_result: Any, path: str | Pa
     g = refine_result.gravity
     head = (f"{mech.name}: Kirchhoff (colours) and Cosserat-refined (dashed black) equilibria"
             + ("" if g is None else f", gravity ({g[0]:g}, {g[1]:g}) m/s²"))
+    units = {leg.input_unit for leg in mech.legs}
+    unit = f" {units.pop()}" if len(units) == 1 else ""  # mixed legs: m and deg, as in the JSON
     figs = []
     for p, chunk in enumerate(pages, 1):
-        n = max(len(chunk), 1)
-        nc = min(n, 5)
-        nrows = math.ceil(n / nc)
-        fig = new_figure(figsize=(3.2 * nc, 3.3 * nrows + 0.6), layout="constrained")
-        axes = fig.subplots(nrows, nc, squeeze=False)
-        fig.suptitle(head + (f" (page {p} of {len(pages)})" if len(pages) > 1 else ""), fontsize=10)
+        fig, axes = panel_page(len(chunk), head + (f" (page {p} of {len(pages)})" if len(pages) > 1 else ""),
+                               panel_height=3.3)
         for idx, ax in enumerate(axes.flat):
             if idx >= len(chunk):
                 ax.set_axis_off()
@@ -125,12 +125,10 @@ def plot_refinement(kirchhoff: Sequence[Any], refine_result: Any, path: str | Pa
                     ax.plot(xy[:, 0], xy[:, 1], zorder=6, **REFINED_STYLE)
                 B = mech.platform.world(np.asarray(r.pose, dtype=float))
                 ax.add_patch(Polygon(B, closed=True, fill=False, ec="k", ls="--", lw=1.0, zorder=6))
-            ax.set_title(f"{label}: {_outcome(r)}", fontsize=8)
-            ax.tick_params(labelsize=7)
-            ax.xaxis.label.set_size(8)
-            ax.yaxis.label.set_size(8)
+            ax.set_title(f"{label}: {_outcome(r, refine_result.problem, unit)}", fontsize=8)
+            style_panel(ax)
         figs.append(fig)
     if path is not None:
         for fig, f in zip(figs, page_paths(path, len(figs))):
-            save(fig, f)
+            save(fig, f, tight=False)
     return figs

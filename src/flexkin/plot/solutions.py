@@ -17,7 +17,8 @@ import numpy as np
 from .mechanism import plot_mechanism
 from .style import mode_color, new_figure, save
 
-__all__ = ["plot_solutions", "plot_solution_pages", "write_solution_pages", "page_paths", "PANELS_PER_PAGE"]
+__all__ = ["plot_solutions", "plot_solution_pages", "write_solution_pages", "page_paths", "panel_page",
+           "style_panel", "PANELS_PER_PAGE"]
 
 #: most panels on one page (4 rows of 5: readable at 150 dpi)
 PANELS_PER_PAGE = 20
@@ -39,6 +40,52 @@ def page_paths(path: str | Path, n_pages: int) -> list[Path]:
     """
     p = Path(path)
     return [p] + [p.with_name(f"{p.stem}_{k}{p.suffix}") for k in range(2, n_pages + 1)]
+
+
+def panel_page(n_panels: int, title: str, ncols: int | None = None, panel_height: float = 3.2) -> tuple[Any, Any]:
+    """A page for ``n_panels`` mechanism panels (at most 5 per row) on a fixed grid: no layout
+    engine and no tight bounding box, so a page draws in one pass.
+
+    Parameters
+    ----------
+    n_panels : int
+        Panels on the page (an empty page gets one).
+    title : str
+        The page's title.
+    ncols : int, optional
+        Panels per row.
+    panel_height : float
+        Height of a panel (inches); panels are 3.2 inches wide.
+
+    Returns
+    -------
+    fig : matplotlib.figure.Figure
+    axes : ndarray of Axes
+        ``(rows, columns)``.
+    """
+    n = max(int(n_panels), 1)
+    nc = ncols or min(n, 5)
+    nrows = math.ceil(n / nc)
+    height = panel_height * nrows + 0.6
+    fig = new_figure(figsize=(3.2 * nc, height))
+    fig.subplots_adjust(left=0.7 / (3.2 * nc), right=0.98, bottom=0.5 / height, top=1.0 - 0.75 / height,
+                        wspace=0.35, hspace=0.45)
+    fig.suptitle(title, fontsize=10)
+    return fig, fig.subplots(nrows, nc, squeeze=False)
+
+
+def style_panel(ax: Any) -> None:
+    """Small tick labels, at most 5 ticks per axis (labels of a narrow panel must not collide).
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        The panel.
+    """
+    ax.tick_params(labelsize=7)
+    ax.locator_params(nbins=5)
+    ax.xaxis.label.set_size(8)
+    ax.yaxis.label.set_size(8)
 
 
 def _what(result) -> str:
@@ -80,19 +127,10 @@ def plot_solution_pages(result, per_page: int | None = None, ncols: int | None =
     mech = result.mechanism
     figs = []
     for p, chunk in enumerate(pages, 1):
-        n = max(len(chunk), 1)
-        nc = ncols or min(n, 5)
-        nrows = math.ceil(n / nc)
-        # a fixed grid, not a layout engine: pages of 20 panels draw several times faster
-        height = 3.2 * nrows + 0.6
-        fig = new_figure(figsize=(3.2 * nc, height))
-        fig.subplots_adjust(left=0.7 / (3.2 * nc), right=0.98, bottom=0.5 / height, top=1.0 - 0.75 / height,
-                            wspace=0.35, hspace=0.45)
-        axes = fig.subplots(nrows, nc, squeeze=False)
         title = f"{mech.name}: {result.problem.upper()} at {_what(result)} — {len(sols)} solution(s)"
         if len(pages) > 1:
             title += f", page {p} of {len(pages)} ({_ids(chunk)})"
-        fig.suptitle(title, fontsize=10)
+        fig, axes = panel_page(len(chunk), title, ncols)
         for idx, ax in enumerate(axes.flat):
             if idx >= len(chunk):
                 ax.set_axis_off()
@@ -105,10 +143,7 @@ def plot_solution_pages(result, per_page: int | None = None, ncols: int | None =
             plot_mechanism(mech, pose=s.pose, rods=rods, ax=ax, inputs=s.inputs)
             st = " undecided" if s.stable is None else (" stable" if s.stable else " unstable")
             ax.set_title(f"#{s.id}  modes {s.mode_label}{st}", fontsize=9, color=mode_color(s.mode_label))
-            ax.tick_params(labelsize=7)
-            ax.locator_params(nbins=5)  # tick labels of a 3 cm panel must not run into each other
-            ax.xaxis.label.set_size(8)
-            ax.yaxis.label.set_size(8)
+            style_panel(ax)
             if zoom:
                 pts = np.concatenate(rods)
                 c = pts.mean(0)
