@@ -36,7 +36,7 @@ def test_ik_time_budget(rfr):
 def test_path_and_workspace_time_budget(rfr):
     p = follow_path(rfr, (0, 0, np.radians(20)), (0.2, 0, np.radians(20)), steps=100_000, time_budget=0.5)
     assert not p.complete and "time budget" in p.message and 1 <= len(p.t) < 100_001
-    w = workspace(rfr, np.radians(20), step=0.01, bounds=(-0.6, 0.6, -0.6, 0.6), all_aspects=False, time_budget=0.5)
+    w = workspace(rfr, np.radians(20), step=0.01, bounds=(-0.6, 0.6, -0.6, 0.6), all_aspects=False, time_budget=0.05)
     assert "time budget" in w.message
 
 
