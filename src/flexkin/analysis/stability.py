@@ -47,6 +47,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
+import numba
 from numba import prange
 
 from ..core.jit import njit
@@ -248,6 +249,7 @@ def _project(Q, C, B) -> int:
 
 
 
+@njit(parallel=True)
 def _spectra(ch, z, alpha, force, ell, e, arm, clamped, psi, w, K, tip, s, coarse, ev, evc, scale) -> None:
     """Per equilibrium ``k`` (in parallel over the cores): the tangent angles at the quadrature
     nodes, the second variation and its constraints (:func:`_assemble`), and the lowest
@@ -298,10 +300,8 @@ def _spectra(ch, z, alpha, force, ell, e, arm, clamped, psi, w, K, tip, s, coars
         evc[k, :] = e2[:pc - m]
 
 
-#: the same kernel compiled twice: threads over the equilibria pay off from this many on
+#: threads over the equilibria pay off from this many on (below, the kernel runs on one thread)
 PARALLEL_MIN = 24
-_spectra_serial = njit(_spectra)
-_spectra_parallel = njit(parallel=True)(_spectra)
 
 
 def _spectrum(system: System, X: NDArray, charts: NDArray, N: int, coarse: int
@@ -334,10 +334,14 @@ def _spectrum(system: System, X: NDArray, charts: NDArray, N: int, coarse: int
     ev = np.empty((n, 3 * N + 3 - m))
     evc = np.empty((n, 3 * coarse + 3 - m))
     scale = np.empty(n)
-    kernel = _spectra_parallel if n >= PARALLEL_MIN else _spectra_serial
-    kernel(ch, z, np.ascontiguousarray(alpha, dtype=float), force, np.ascontiguousarray(ell, dtype=float),
-             np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(arm), clamped, bs.psi, bs.w, bs.K, bs.tip,
-             bs.s, int(coarse), ev, evc, scale)
+    threads = numba.get_num_threads()
+    numba.set_num_threads(threads if n >= PARALLEL_MIN else 1)
+    try:
+        _spectra(ch, z, np.ascontiguousarray(alpha, dtype=float), force, np.ascontiguousarray(ell, dtype=float),
+                 np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(arm), clamped, bs.psi, bs.w, bs.K, bs.tip,
+                 bs.s, int(coarse), ev, evc, scale)
+    finally:
+        numba.set_num_threads(threads)
     return ev, scale, evc
 
 
