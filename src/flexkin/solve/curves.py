@@ -100,50 +100,53 @@ def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.
             if len(line) < 2:
                 continue
             zl = np.stack([line[:, 1], line[:, 0]], -1)
-            data = _branch_data(leg, B[i], zl[:, 0], zl[:, 1])
-            for _ in range(passes):
-                f_ = data["force"]
-                fscale = leg.rod.EI / data["length"] ** 2
+            t = _tips(zl)
+            for _ in range(passes):  # only the new vertices are evaluated
+                f_, L, _ = _forces(leg, B[i], t)
+                fscale = leg.rod.EI / L ** 2
                 jump = np.max(np.abs(np.diff(f_, axis=0)), axis=1)
                 lim = force_tol * (np.minimum(fscale[:-1], fscale[1:]) + np.hypot(*f_[:-1].T))
                 bad = np.flatnonzero(jump > lim)
                 if bad.size == 0 or len(zl) > 20000:
                     break
-                mid = _snap(code, par, 0.5 * (zl[bad] + zl[bad + 1]), zl[bad + 1] - zl[bad],
-                            max_shift=0.25 * np.hypot(*(zl[bad + 1] - zl[bad]).T))
+                mid, tmid = _snap(code, par, 0.5 * (zl[bad] + zl[bad + 1]), zl[bad + 1] - zl[bad],
+                                  max_shift=0.25 * np.hypot(*(zl[bad + 1] - zl[bad]).T))
                 zl = np.insert(zl, bad + 1, mid, axis=0)
-                data = _branch_data(leg, B[i], zl[:, 0], zl[:, 1])
+                t = np.insert(t, bad + 1, tmid, axis=0)
             if mask_f is not None:  # length legs: keep the ray, not its opposite
-                keep = mask_f(data["x"], data["y"])
+                keep = mask_f(t[:, 0], t[:, 1])
                 if not np.all(keep):
                     for piece in np.split(np.arange(len(zl)), np.flatnonzero(np.diff(keep.astype(int))) + 1):
                         if keep[piece[0]] and len(piece) >= 2:
-                            branches.append(_branch_data(leg, B[i], zl[piece, 0], zl[piece, 1]))
+                            branches.append(_branch_data(leg, B[i], zl[piece], t[piece]))
                     continue
-            branches.append(data)
+            branches.append(_branch_data(leg, B[i], zl, t))
         out.append(LegCurve(i, leg.actuation, tuple(branches)))
     return out
 
 
 def _snap(code: int, par: NDArray[np.float64], z: NDArray[np.float64], direction: NDArray[np.float64],
-          iters: int = 5, max_shift: NDArray[np.float64] | float = 0.1) -> NDArray[np.float64]:
+          iters: int = 5, max_shift: NDArray[np.float64] | float = 0.1
+          ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Move points ``z`` (n, 2) of chart ``(v, phis)`` onto the leg's level set (condition
     ``code``, ``par``, :meth:`~flexkin.mechanism.actuators.Actuator.condition`) along the
-    normal of the local curve tangent ``direction`` (n, 2).
+    normal of the local curve tangent ``direction`` (n, 2); returns the points and their unit
+    tips (n, 4) as :func:`_tips`.
 
     Points that would move by more than ``max_shift`` (they would jump to another branch of
     the level set) or where the iteration does not settle keep their original position.
     """
     z = np.ascontiguousarray(z, dtype=float)
     out = np.empty_like(z)
+    tips = np.empty((len(z), 4))
     shift = np.broadcast_to(np.asarray(max_shift, dtype=float), (len(z),)).copy()
     _snap_kernel(int(code), float(par[0]), float(par[1]), z, np.ascontiguousarray(direction, dtype=float),
-                 iters, shift, out)
-    return out
+                 iters, shift, out, tips)
+    return out, tips
 
 
 @njit(cache=True)
-def _snap_kernel(code, p0, p1, z, direction, iters, max_shift, out) -> None:
+def _snap_kernel(code, p0, p1, z, direction, iters, max_shift, out, tips) -> None:
     """Newton along the normal of ``direction`` on ``g(tip(v, phis)) = 0`` with the analytic
     gradient; the step is capped at 0.05 per iteration (see :func:`_snap`)."""
     q = np.empty(NQ)
@@ -161,38 +164,55 @@ def _snap_kernel(code, p0, p1, z, direction, iters, max_shift, out) -> None:
             step = g / dg
             if np.isfinite(step):
                 t -= min(max(step, -0.05), 0.05)
+                if abs(step) < 1e-15:
+                    break
         px, py = z[k, 0] + t * nx, z[k, 1] + t * ny
         unified_eval(px, py, q, gr)
         g, gx, gy, _a, _ax, _ay, _ok = condition_eval(code, p0, p1, q[X], q[Y])
-        if np.isfinite(g) and abs(t) < max_shift[k]:
-            out[k, 0], out[k, 1] = px, py
-        else:
-            out[k, 0], out[k, 1] = z[k, 0], z[k, 1]
+        if not (np.isfinite(g) and abs(t) < max_shift[k]):
+            px, py = z[k, 0], z[k, 1]
+            unified_eval(px, py, q, gr)
+        out[k, 0], out[k, 1] = px, py
+        tips[k, 0] = q[X]
+        tips[k, 1] = q[Y]
+        tips[k, 2] = q[FX]
+        tips[k, 3] = q[FY]
 
 
 @njit(cache=True)
-def _tips(v, phis, out) -> None:
+def _tips_kernel(z, out) -> None:
     """Unit-rod tips ``out[:, 0:4] = x, y, f_x, f_y`` (local frame, force on the tip) at chart
-    points ``(v, phis)`` (closed form, :func:`~flexkin.rod.kernels.unified_eval`)."""
+    points ``z = (v, phis)`` (closed form, :func:`~flexkin.rod.kernels.unified_eval`)."""
     q = np.empty(NQ)
     gr = np.empty((NQ, 3))
-    for k in range(v.shape[0]):
-        unified_eval(v[k], phis[k], q, gr)
+    for k in range(z.shape[0]):
+        unified_eval(z[k, 0], z[k, 1], q, gr)
         out[k, 0] = q[X]
         out[k, 1] = q[Y]
         out[k, 2] = q[FX]
         out[k, 3] = q[FY]
 
 
-def _branch_data(leg, B, v, phis) -> dict[str, NDArray]:
-    v = np.ascontiguousarray(v, dtype=float)
-    phis = np.ascontiguousarray(phis, dtype=float)
-    t = np.empty((len(v), 4))
-    _tips(v, phis, t)
-    ku = np.tanh(v)
+def _tips(z: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Unit-rod tips (n, 4) = ``x, y, f_x, f_y`` at chart points ``z`` (n, 2)."""
+    out = np.empty((len(z), 4))
+    _tips_kernel(np.ascontiguousarray(z, dtype=float), out)
+    return out
+
+
+def _forces(leg, B, t) -> tuple[NDArray, NDArray, NDArray]:
+    """World tip forces (n, 2), free lengths (n,) and inputs (n,) of the rods with unit tips
+    ``t`` (:func:`_tips`) placed at ``B`` by the leg's actuator."""
     u, alpha, L = leg.actuator.from_tip(B, t[:, 0], t[:, 1])
-    force = rotate(t[:, 2:4], alpha) * (leg.rod.EI / L**2)[:, None]
+    return rotate(t[:, 2:4], alpha) * (leg.rod.EI / L**2)[:, None], L, u
+
+
+def _branch_data(leg, B, z, t) -> dict[str, NDArray]:
+    v = np.ascontiguousarray(z[:, 0])
+    phis = np.ascontiguousarray(z[:, 1])
+    ku = np.tanh(v)
+    force, L, u = _forces(leg, B, t)
     k, psi, q = to_paper(ku, phis)
     return {"v": v, "ku": ku, "phis": phis, "z": np.stack([v, phis], -1), "k": k, "psi": psi,
             "kr": kr_from_k(k, psi), "mode": mode_of(phis), "input": u, "force": force, "length": L,
-            "tip_moment": np.zeros_like(v), "x": t[:, 0], "y": t[:, 1]}
+            "tip_moment": np.zeros_like(v)}
