@@ -1,95 +1,358 @@
-"""flexkin benchmark: medians of the operations users wait for.
+"""flexkin benchmark: the operations users wait for (issue 13's table), side by side with the
+tests' own independent multi-start oracles.
 
-Run:  python benchmarks/bench.py [--repeat N] [--quick]
+Run::
 
-Prints a table with the machine's core count.  Timings are wall-clock medians on one
-process (numpy may use more than one thread for large arrays; set OMP_NUM_THREADS=1 for a
-strict one-core figure).
+    python benchmarks/bench.py [--repeat N] [--quick] [--json PATH] [--only SUBSTRING ...]
+
+Every row reports the median, min and max wall-clock time of ``N`` runs after one warm-up run
+and, for in-process rows, the median process CPU time (all threads; on a loaded machine the
+CPU time is the steadier figure)
+(the warm-up loads the compiled kernels and builds the per-process caches; whole-process rows
+start a fresh interpreter each time and so include import and kernel loading).  The header
+gives the machine's core count and its load average: the figures are only comparable between
+runs on an otherwise idle machine.
+
+Oracle rows: one IK and one FK query are solved by flexkin and by the tests' multi-start
+shooting oracles (``tests/ik_oracle.py`` ``oracle_ik``, ``tests/fk_oracle.py``
+``fk_multistart``, with the default test budgets), and the ratio of the times is reported at
+equal completeness: the row says whether flexkin's solution set contains every oracle solution
+(same pose and tip forces; oracle solutions with an "extreme" rod outside flexkin's documented
+scope are not required).
+
+``--quick`` runs 2 repeats and skips the FK rows, the whole-process workspace, the oracles
+and the Cosserat refinement.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import os
+import platform
+import shutil
 import statistics
+import subprocess
+import sys
 import time
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 
-import flexkin
-from flexkin.mechanism import symmetric_mechanism
-from flexkin.rod.closed_form import tip_chart
-
 ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples"
+PROTO = EXAMPLES / "prototype_3pfr.toml"
+sys.path.insert(0, str(ROOT / "tests"))  # the oracles (they import no flexkin solver)
 
 
-def _median_time(fn, repeat: int) -> float:
-    fn()  # warm-up (atlas, caches)
-    times = []
+@dataclass
+class Row:
+    """One line of the table (times in seconds)."""
+
+    name: str
+    times: list[float]
+    cpu: list[float] = field(default_factory=list)   # process CPU time of the same runs (in-process rows)
+    target: float | None = None
+    moonshot: float | None = None
+    per: int = 1                      # the times are divided by this (per-step rows)
+    unit: str = "ms"
+    note: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def stat(self, f: Callable[[list[float]], float]) -> float | None:
+        return f(self.times) / self.per if self.times else None
+
+    @property
+    def median(self) -> float | None:
+        return self.stat(statistics.median)
+
+    @property
+    def met(self) -> bool | None:
+        m = self.median
+        return None if m is None or self.target is None else bool(m <= self.target)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d.update(median=self.median, min=self.stat(min), max=self.stat(max), runs=len(self.times), met=self.met,
+                 cpu_median=statistics.median(self.cpu) / self.per if self.cpu else None)
+        return d
+
+
+_SCALE = {"s": 1.0, "ms": 1e3, "us": 1e6}
+
+
+def _fmt(v: float | None, unit: str) -> str:
+    if v is None:
+        return "-"
+    x = v * _SCALE[unit]
+    return f"{x:.3g} {unit}" if x < 100 else f"{x:.0f} {unit}"
+
+
+#: process CPU times of the last :func:`_times` call (all threads of this process)
+_CPU: list[float] = []
+
+
+def _times(fn: Callable[[], Any], repeat: int, warm: bool = True) -> list[float]:
+    """Wall-clock seconds of ``repeat`` runs of ``fn`` after an optional warm-up run; their
+    process CPU seconds are left in :data:`_CPU`."""
+    if warm:
+        fn()
+    out = []
+    _CPU.clear()
     for _ in range(repeat):
+        c = time.process_time()
         t = time.perf_counter()
         fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
+        out.append(time.perf_counter() - t)
+        _CPU.append(time.process_time() - c)
+    return out
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--quick", action="store_true", help="fewer repeats, skip the FK rows")
-    a = ap.parse_args()
-    rep = 2 if a.quick else a.repeat
-    proto = flexkin.load_mechanism(ROOT / "examples" / "prototype_3pfr.toml")
+def _cpu() -> list[float]:
+    return list(_CPU)
+
+
+def _cli() -> list[str]:
+    exe = shutil.which("flexkin")
+    return [exe] if exe else [sys.executable, "-c", "import sys; from flexkin.cli import main; sys.exit(main())"]
+
+
+def _process(args: list[str]) -> Callable[[], None]:
+    def run() -> None:
+        subprocess.run(_cli() + args, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
+    return run
+
+
+# ---- the rows -------------------------------------------------------------------------------------
+def ik_rows(rep: int, rows: list[Row], ctx: dict) -> None:
+    import flexkin
+    from flexkin.mechanism import symmetric_mechanism
+
+    proto = flexkin.load_mechanism(PROTO)
     rfr = symmetric_mechanism("revolute")
-    rows = []
+    ctx.update(proto=proto, rfr=rfr)
+    for name, mech, pose, target, moon in (
+            ("full IK in-process, prototype (0, 0, 90 deg), max_mode 2", proto, (0.0, 0.0, math.radians(90)), 0.040,
+             0.015),
+            ("full IK in-process, unit 3-RFR (0.05, 0.02, 20 deg)", rfr, (0.05, 0.02, math.radians(20)), 0.020, 0.008)):
+        t = _times(lambda: flexkin.ik(mech, pose), rep)
+        res = flexkin.ik(mech, pose)
+        ctx[name] = res
+        rows.append(Row(name, t, _cpu(), target, moon, note=f"{len(res)} solutions"))
+    ctx["ik_proto"] = ctx[rows[-2].name]
+    ctx["ik_rfr"] = ctx[rows[-1].name]
 
-    rng = np.random.default_rng(0)
-    n = 100_000
-    v = rng.uniform(-8, 8, n)
-    ph = rng.uniform(-4.7, 1.5, n)
-    t = _median_time(lambda: tip_chart(v, ph), rep)
-    rows.append(("closed-form rod tip, vectorised", f"{1e9 * t / n:.0f} ns / rod", f"{n} rods per call"))
 
-    t = _median_time(lambda: flexkin.solve_rod((0.6, -0.2125), 0.908, 0.2704), rep)
-    rows.append(("single-rod inverse (all equilibria, q<=2)", f"{1e3 * t:.1f} ms", "Fig. 19 point x=0.6 m"))
+def cli_ik_row(rep: int, rows: list[Row], ctx: dict) -> None:
+    run = _process(["ik", str(PROTO), "--pose", "0", "0", "90", "--json"])
+    rows.append(Row("`flexkin ik examples/prototype_3pfr.toml --pose 0 0 90 --json`, whole process",
+                    _times(run, rep), [], 0.5, 0.3, unit="s"))
 
-    for name, mech, pose in (("prototype 3-PFR", proto, (0.0, 0.0, np.radians(90))),
-                             ("unit 3-RFR", rfr, (0.05, 0.02, np.radians(20)))):
-        t = _median_time(lambda: flexkin.ik(mech, pose), rep)
-        nsol = len(flexkin.ik(mech, pose))
-        rows.append((f"full IK, max_mode 2, {name}", f"{1e3 * t:.0f} ms", f"{nsol} solutions"))
+
+def fk_rows(rep: int, rows: list[Row], ctx: dict) -> None:
+    import flexkin
+
+    proto, rfr = ctx["proto"], ctx["rfr"]
+    u3 = flexkin.load_mechanism(EXAMPLES / "unit_3pfr.toml")
+    u_rfr = tuple(ctx["ik_rfr"].solutions[0].inputs)
+    u_worst = tuple(flexkin.ik(u3, (0.05, -0.03, math.radians(15))).solutions[40].inputs)
+    for name, mech, u, target, moon in (
+            ("full FK in-process, prototype rho = 0.025", proto, (0.025, 0.025, 0.025), 0.3, 0.1),
+            ("full FK in-process, unit 3-RFR (inputs of IK solution 1 at (0.05, 0.02, 20 deg))", rfr, u_rfr, 0.5,
+             0.15),
+            ("full FK, worst test case (unit 3-PFR, inputs of IK solution 41 at (0.05, -0.03, 15 deg))", u3,
+             u_worst, 2.0, 0.5)):
+        t = _times(lambda: flexkin.fk(mech, u), max(1, rep // 2))
+        cpu = _cpu()
+        res = flexkin.fk(mech, u)
+        rows.append(Row(name, t, cpu, target, moon, unit="s", note=f"{len(res)} solutions, complete={res.complete}"))
+
+
+def continuation_rows(rep: int, rows: list[Row], ctx: dict) -> None:
+    from flexkin.solve.continuation import continue_ik
+    from flexkin.system import System
+
+    proto = ctx["proto"]
+    system = System.from_mechanism(proto)
+    sol = next(s for s in ctx["ik_proto"].solutions if s.stable)
+    lay = system.layout
+    for batch, target, moon in ((1, 50e-6, 20e-6), (200, 20e-6, 5e-6)):
+        X0 = np.repeat(np.asarray(sol.x)[None], batch, 0)
+        C0 = np.repeat(np.asarray(sol.charts)[None], batch, 0)
+        p1 = X0[:, lay.pose] + np.array([1e-3 * system.L_ref, 0.0, 0.0])
+        n = max(rep, 20) if batch == 1 else rep
+        t = _times(lambda: continue_ik(system, X0, C0, p1, np.zeros(3)), n)
+        cpu = _cpu()
+        ok = continue_ik(system, X0, C0, p1, np.zeros(3))[2]
+        rows.append(Row("one continuation step, alone" if batch == 1 else "continuation step, batch of 200", t,
+                        cpu, target, moon, per=batch, unit="us",
+                        note=f"prototype, step L_ref/1000, {int(ok.sum())}/{batch} accepted"))
+
+
+def workspace_rows(rep: int, rows: list[Row], ctx: dict, quick: bool) -> None:
+    import flexkin
+
+    proto = ctx["proto"]
+    box: dict = {}
+
+    def one() -> None:
+        box["ws"] = flexkin.workspace(proto, math.radians(90), all_aspects=False)
+    t = _times(one, max(1, rep // 2))
+    ws = box["ws"]
+    rows.append(Row("workspace 101 x 90, prototype theta = 90 deg, one aspect", t, _cpu(), 1.0, 0.3, unit="s",
+                    note=f"{ws.maps[0].area_cells} cells, {ws.steps} continuation steps"))
+    if not quick:
+        run = _process(["workspace", str(PROTO), "--theta", "90"])
+        rows.append(Row("`flexkin workspace examples/prototype_3pfr.toml --theta 90` (all aspects), whole process",
+                        _times(run, 1, warm=False), [], 10.0, 3.0, unit="s", note="one run"))
+
+
+def extra_rows(rep: int, rows: list[Row], ctx: dict, quick: bool) -> None:
+    import importlib.util
+
+    proto = ctx["proto"]
+    res = ctx["ik_proto"]
+    # verification (issue 12), if present
+    if importlib.util.find_spec("flexkin.analysis.verify") is not None:
+        from flexkin.analysis.verify import verify_solutions
+        from flexkin.system import System
+
+        system = System.from_mechanism(proto)
+        X = np.array([s.x for s in res.solutions])
+        ch = np.array([s.charts for s in res.solutions])
+        modes = np.array([s.modes for s in res.solutions])
+        t = _times(lambda: verify_solutions(system, X, ch, np.asarray(res.load), modes), rep)
+        rows.append(Row(f"verification (ODE re-integration) of the {len(X)} prototype IK solutions", t, _cpu(),
+                        note="flexkin.analysis.verify.verify_solutions"))
+    else:
+        rows.append(Row("verification of the 88 prototype IK solutions", [], note="skipped: no flexkin.analysis.verify"))
+    # explorer responsiveness
+    if importlib.util.find_spec("flexkin.explore.bench") is not None:
+        from flexkin.explore.bench import responsiveness
+
+        r = responsiveness(PROTO, moves=max(20, 10 * rep), refreshes=max(3, rep))
+        for key, label, target in (("track", "explorer: tracked drag (one move, server side)", 0.050),
+                                   ("refresh", "explorer: full refresh on release (server side)", 0.200)):
+            m = r[key]["median_ms"] / 1e3
+            note = f"median of {r[key]['n']}, p90 {r[key]['p90_ms']:.0f} ms, max {r[key]['max_ms']:.0f} ms"
+            if key == "refresh":
+                note += f", of which flexkin.ik {r.get('refresh_solver_median_ms', float('nan')):.0f} ms"
+            rows.append(Row(label, [m], [], target, note=note, extra={"responsiveness": r[key]}))
+    else:
+        rows.append(Row("explorer responsiveness", [], note="skipped: no flexkin.explore.bench"))
+    # Cosserat refinement of the 88 IK solutions
+    if not quick:
+        from flexkin.cosserat import CosseratParams, params_for_mechanism, refine
+
+        try:
+            params = params_for_mechanism(proto)
+            which = "rods' E and radius"
+        except ValueError:
+            params = CosseratParams.kirchhoff()
+            which = "Kirchhoff limit"
+        box: dict = {}
+
+        def run() -> None:
+            box["r"] = refine(proto, res, params=params)
+        t = _times(run, 1, warm=True)
+        rows.append(Row(f"Cosserat refinement of the {len(res)} prototype IK solutions at (0, 0, 90 deg)", t, _cpu(),
+                        2.0, unit="s", note=f"params from the {which}"))
+
+
+def oracle_rows(rows: list[Row], ctx: dict) -> None:
+    import flexkin
+    import fk_oracle as FO
+    import ik_oracle as IO
+
+    # IK: unit 3-RFR at (0.05, 0.02, 20 deg), the test's default budget
+    mech = ctx["rfr"]
+    pose = (0.05, 0.02, math.radians(20))
+    t_flex = _times(lambda: flexkin.ik(mech, pose), 3)
+    res = flexkin.ik(mech, pose)
+    t0 = time.perf_counter()
+    sols = IO.oracle_ik(mech, pose, load=(0.0, 0.0, 0.0), max_mode=2, n_starts=400, scan=(160, 320),
+                        max_triples=2000, seed=1)
+    t_or = time.perf_counter() - t0
+    F_ref = IO.Geom.of(mech).F_ref
+    flex_forces = [[r.tip_force for r in s.rods] for s in res.solutions]
+    missed = [s for s in sols if not s.extreme and not any(IO.match(ff, s.forces, F_ref) for ff in flex_forces)]
+    med = statistics.median(t_flex)
+    rows.append(Row("oracle ratio, IK unit 3-RFR (0.05, 0.02, 20 deg): oracle_ik time / flexkin time", [t_or], [],
+                    note=f"ratio {t_or / med:.0f}x; flexkin {len(res)} solutions in {1e3 * med:.0f} ms, oracle "
+                         f"{len(sols)}; flexkin contains the oracle's: {not missed}",
+                    unit="s", extra={"ratio": t_or / med, "flexkin_s": med, "contains": not missed,
+                                     "flexkin_n": len(res), "oracle_n": len(sols)}))
+    # FK: prototype, paper Table 1 inputs, the test's default budget
+    proto = ctx["proto"]
+    u = (0.025, 0.025, 0.025)
+    t_flex = _times(lambda: flexkin.fk(proto, u, load=(0, 0, 0)), 1)
+    res = flexkin.fk(proto, u, load=(0, 0, 0))
+    t0 = time.perf_counter()
+    sols = FO.fk_multistart(proto, u, load=(0.0, 0.0, 0.0), max_mode=2, n_random=300, n_forward=300,
+                            anchors=(150, 36, 0.97), s_max=1.5, seed=1)
+    t_or = time.perf_counter() - t0
+    F_ref = IO.Geom.of(proto).F_ref
+
+    def same(f, o) -> bool:
+        if not FO.pose_match(f.pose, o.pose, 1e-6, 1e-5):
+            return False
+        a = np.array([r.tip_force for r in f.rods], float)
+        return float(np.max(np.abs(a - o.forces))) <= 1e-5 * max(float(np.max(np.abs(o.forces))), F_ref)
+    missed = [o for o in sols if not getattr(o, "extreme", False) and not any(same(f, o) for f in res.solutions)]
+    med = statistics.median(t_flex)
+    rows.append(Row("oracle ratio, FK prototype rho = 0.025: fk_multistart time / flexkin time", [t_or], [],
+                    note=f"ratio {t_or / med:.0f}x; flexkin {len(res)} solutions in {med:.2f} s, oracle {len(sols)}; "
+                         f"flexkin contains the oracle's: {not missed}",
+                    unit="s", extra={"ratio": t_or / med, "flexkin_s": med, "contains": not missed,
+                                     "flexkin_n": len(res), "oracle_n": len(sols)}))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeat", type=int, default=5, help="timed runs per row after a warm-up (default 5)")
+    ap.add_argument("--quick", action="store_true", help="2 repeats; skip FK, whole-process workspace, oracles, "
+                                                         "Cosserat")
+    ap.add_argument("--json", metavar="PATH", help="also write the rows as JSON to PATH")
+    ap.add_argument("--no-oracle", action="store_true", help="skip the oracle rows (minutes)")
+    a = ap.parse_args(argv)
+    if a.repeat < 1:
+        ap.error("--repeat must be >= 1")
+    rep = 2 if a.quick else a.repeat
+    import flexkin
+
+    rows: list[Row] = []
+    ctx: dict = {}
+    t_all = time.perf_counter()
+    cli_ik_row(rep, rows, ctx)
+    ik_rows(rep, rows, ctx)
     if not a.quick:
-        for name, mech, u in (("prototype 3-PFR", proto, (0.025, 0.025, 0.025)),
-                              ("unit 3-RFR", rfr, tuple(flexkin.ik(rfr, (0.05, 0.02, np.radians(20))).solutions[0].inputs))):
-            t = _median_time(lambda: flexkin.fk(mech, u), max(1, rep // 2))
-            nsol = len(flexkin.fk(mech, u))
-            rows.append((f"full FK, max_mode 2, {name}", f"{t:.2f} s", f"{nsol} solutions"))
-
-    # continuation and workspace (paper §6)
-    from flexkin.kinematics.continuation import continue_ik
-    from flexkin.kinematics.system import MechArrays
-    from flexkin.workspace import workspace
-
-    m = MechArrays.from_mechanism(proto)
-    sol = [s for s in flexkin.ik(proto, (0.0, 0.0, np.radians(90))).solutions if s.stable][0]
-    x0 = np.concatenate([sol.zrod, sol.inputs])
-    for batch in (1, 200):
-        X0 = np.repeat(x0[None], batch, 0)
-        p0 = np.repeat(np.array([[0.0, 0.0, np.radians(90)]]), batch, 0)
-        p1 = p0 + np.array([0.01, 0.0, 0.0])
-        t = _median_time(lambda: continue_ik(m, X0, p0, p1, np.zeros(3)), rep)
-        rows.append((f"continuation step, batch of {batch}", f"{1e6 * t / batch:.0f} us / step", "prototype"))
-    t = _median_time(lambda: workspace(proto, np.radians(90), all_aspects=False), max(1, rep // 2))
-    ws = workspace(proto, np.radians(90), all_aspects=False)
-    rows.append(("workspace map 101 x 90, prototype theta=90 deg", f"{t:.1f} s",
-                 f"{ws.maps[0].area_cells} cells, {ws.steps} steps, {1e6 * t / max(ws.steps, 1):.0f} us/step"))
-
-    print(f"flexkin {flexkin.__version__} benchmark — {os.cpu_count()} cores, median of {rep} runs")
-    w = max(len(r[0]) for r in rows)
+        fk_rows(rep, rows, ctx)
+    continuation_rows(rep, rows, ctx)
+    workspace_rows(rep, rows, ctx, a.quick)
+    extra_rows(rep, rows, ctx, a.quick)
+    if not (a.quick or a.no_oracle):
+        oracle_rows(rows, ctx)
+    cores = os.cpu_count()
+    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
+    print(f"flexkin {flexkin.__version__} benchmark: {cores} cores, load average {load[0]:.1f} / {load[1]:.1f} / "
+          f"{load[2]:.1f}, median (min, max) of {rep} runs after a warm-up; {time.perf_counter() - t_all:.0f} s")
+    w = max(len(r.name) for r in rows)
+    print(f"  {'operation':<{w}}  {'median':>10} {'min':>10} {'max':>10} {'cpu med':>10}  {'target':>9}  met   note")
     for r in rows:
-        print(f"  {r[0]:<{w}}  {r[1]:>14}   {r[2]}")
+        met = {None: "  - ", True: " yes", False: "  NO"}[r.met]
+        cpu = statistics.median(r.cpu) / r.per if r.cpu else None
+        print(f"  {r.name:<{w}}  {_fmt(r.median, r.unit):>10} {_fmt(r.stat(min), r.unit):>10} "
+              f"{_fmt(r.stat(max), r.unit):>10} {_fmt(cpu, r.unit):>10}  {_fmt(r.target, r.unit):>9} {met}   {r.note}")
+    if a.json:
+        out = {"flexkin": flexkin.__version__, "cores": cores, "loadavg": list(load), "repeat": rep,
+               "python": platform.python_version(), "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+               "rows": [r.to_dict() for r in rows]}
+        Path(a.json).write_text(json.dumps(out, indent=1))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())
