@@ -471,27 +471,35 @@ def _residuals(system: System, X: NDArray, load: NDArray, w: dict[str, NDArray],
 
 
 # ---------------------------------------------------------------------------------------------
-def verify_cost(repeat: int = 3) -> dict[str, float]:
-    """Cost of the verification on the prototype's IK at (0, 0, 90 deg) (for ``benchmarks/bench.py``).
+def verify_cost(repeat: int = 3, mechanism: str | None = None,
+                pose: tuple[float, float, float] = (0.0, 0.0, math.pi / 2)) -> dict[str, float]:
+    """Cost of the verification of all IK solutions at a pose (for ``benchmarks/bench.py``).
 
     Parameters
     ----------
     repeat : int, optional
         Timed repetitions (the best is reported).
+    mechanism : str, optional
+        Mechanism file; default the repository's ``examples/prototype_3pfr.toml``.
+    pose : tuple of float, optional
+        ``(x, y, theta)`` (m, m, rad); default (0, 0, 90 deg).
 
     Returns
     -------
     dict
-        ``solutions``, ``verify_s`` (seconds for all of them), ``per_solution_ms``, ``ik_s``
-        (the IK itself, verification included) and ``unverified`` (count).
+        ``solutions``, ``verify_s`` (seconds to verify all of them, condition numbers
+        included), ``per_solution_ms``, ``ik_s`` (one IK call, verification included) and
+        ``unverified`` (count).
     """
     from pathlib import Path
 
     import flexkin
 
-    mech = flexkin.load_mechanism(Path(flexkin.__file__).resolve().parents[2] / "examples" / "prototype_3pfr.toml")
+    if mechanism is None:
+        mechanism = str(Path(flexkin.__file__).resolve().parents[2] / "examples" / "prototype_3pfr.toml")
+    mech = flexkin.load_mechanism(mechanism)
     t0 = time.perf_counter()
-    res = flexkin.ik(mech, (0.0, 0.0, math.radians(90.0)))
+    res = flexkin.ik(mech, pose)
     t_ik = time.perf_counter() - t0
     system = System.from_mechanism(mech)
     X = np.array([s.x for s in res.solutions])
