@@ -365,3 +365,21 @@ def test_merged_aspect_holds_the_region_of_every_seed_it_merges(pl_pair):
     assert np.all(mine[0].reached[first.reached])
     assert mine[0].area_cells >= first.area_cells
     assert sum(len(mp.seeds) for mp in allw.maps) == len({s for mp in allw.maps for s in mp.seeds})
+
+
+def test_default_stability_rejects_unstable_cells_on_a_coarse_grid():
+    """Regression: carrying stability by the sign of det A_FK over a coarse 0.1 m step admitted
+    an unstable cell (margin -7.5) into the stable aspect of the unit 3-RFR with L = 1.1 m at
+    10 deg; the default computes the second variation at every cell."""
+    import math
+    import tomllib
+    from pathlib import Path
+
+    from flexkin.mechanism import mechanism_from_dict
+
+    d = tomllib.loads((Path(__file__).parents[1] / "examples" / "unit_3rfr.toml").read_text())
+    d["rod"]["length"] = 1.1
+    mech = mechanism_from_dict(d, source="unit_3rfr, L = 1.1")
+    ws = workspace(mech, math.radians(10), step=0.1, all_aspects=False)
+    margins = ws.margins(mech)[0][ws.maps[0].reached]
+    assert margins.size > 10 and np.all(margins > 0)

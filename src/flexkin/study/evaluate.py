@@ -160,7 +160,10 @@ def _aspect_metrics(out: dict[str, Any], want: set[str], ws: Any, mech: Any) -> 
     out["n_mode_combinations"] = len({tuple(int(q) for q in m) for m in modes})
     nik, nfk = int(np.count_nonzero(mp.boundary_ik)), int(np.count_nonzero(mp.boundary_fk))
     out["fk_boundary_fraction"] = nfk / (nik + nfk) if nik + nfk else None
-    _summary(out, "stability_margin", np.asarray(mp.margin)[r])
+    if want & {f"{st}_stability_margin" for st in _STAT}:
+        # the wave leaves the margin NaN where the sign of det A_FK decided stability: every
+        # reached cell's margin, not the subset the wave happened to compute
+        _summary(out, "stability_margin", ws.margins(mech)[0][r])
     _summary(out, "singularity_distance", singularity_distance_map(mp, h)[r])
     if want & _INDEX_METRICS:
         system = System.from_mechanism(mech)
