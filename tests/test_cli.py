@@ -197,3 +197,29 @@ def test_revolute_range_wraps_angles(capsys):
         assert s["feasible"] and not s["feasibility"]["inputs_out_of_range"]
         u2 = s["inputs"][1] % 360.0
         assert 60.0 <= u2 <= 240.0
+
+
+# ---- issue 18, defect 2 (CLI): the constrained workspace ----------------------------------------
+def test_workspace_constrained_maps_only_cells_within_the_ranges(capsys, tmp_path):
+    from flexkin.mechanism import load_mechanism
+
+    mech_file = ROOT / "docs" / "spring_steel_3rfr.toml"
+    args = ["workspace", str(mech_file), "--theta", "20", "--seed", "0.02", "0.01", "--step", "0.02",
+            "--bounds", "-0.2", "0.2", "-0.2", "0.2", "--first-aspect", "--json", "--quiet"]
+    code, out, _ = run(capsys, *args, "--save", str(tmp_path / "all.npz"))
+    (free,) = json.loads(out)["workspaces"]
+    code2, out2, err2 = run(capsys, *args, "--constrained", "--save", str(tmp_path / "c.npz"))
+    (cons,) = json.loads(out2)["workspaces"]
+    assert code == code2 == 0 and str(tmp_path / "c.npz") in err2
+    assert not free["constrained"] and cons["constrained"] and "ranges" in cons["constraints"]
+    a_free, a_cons = free["aspects"][0], cons["aspects"][0]
+    assert 0 < a_cons["cells"] <= a_free["feasible_cells"] < a_free["cells"]
+    assert a_cons["feasible_cells"] == a_cons["cells"] and a_cons["boundary_infeasible_cells"] > 0
+    # independent: every mapped cell has its three pivots in range (angles modulo 360 deg)
+    mech = load_mechanism(mech_file)
+    ws = np.load(tmp_path / "c.npz")
+    reached = ws["map0_status"] == 1
+    assert int(reached.sum()) == a_cons["cells"]
+    for i, leg in enumerate(mech.legs):
+        lo, hi = leg.range
+        assert np.all(np.remainder(ws["map0_inputs"][..., i][reached] - lo, 2 * np.pi) <= hi - lo + 1e-12)

@@ -68,6 +68,7 @@ def test_walkthrough_has_every_step():
     for verb in ("show", "ik", "fk", "path", "workspace", "refine"):
         assert verb in verbs, verb
     assert any("--feasible-only" in c and " ik " in f" {c} " for c in cmds)
+    assert any("workspace" in c and "--constrained" in c for c in cmds)
     assert any("--shapes" in c for c in cmds)
     assert not (ROOT / "examples" / MECH.name).exists()  # not a bundled example
 
@@ -119,6 +120,7 @@ def test_walkthrough_facts(capsys, monkeypatch, workdir):
     reached = ws["map0_status"] == 1
     assert int(reached.sum()) == 278
     # "only 50 of the 278 cells have all three pivots within their ranges", from the saved inputs
+    # (independent of the workspace's own feasibility flags: the ranges compared modulo 360 deg)
     import flexkin
 
     mech = flexkin.load_mechanism(workdir / MECH.name)

@@ -196,13 +196,21 @@ def _build_parser() -> argparse.ArgumentParser:
     wk.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode of the seed IK (default 2)")
     wk.add_argument("--first-aspect", action="store_true",
                     help="map only the aspect of the first stable seed solution (default: every stable one)")
+    wk.add_argument("--constrained", action="store_true",
+                    help="stop the propagation at infeasible cells (an input outside its leg's range, strain above "
+                         "[limits] max_strain; with --collisions also colliding rods): the region the design can use "
+                         "(default: every stable equilibrium reached, feasibility only marked)")
+    wk.add_argument("--collisions", action="store_true",
+                    help="also check rod-rod and rod-platform collisions at every cell (slower)")
     wk.add_argument("--color", default="modes", choices=["modes", "margin", "cond", "input1", "input2", "input3"],
                     help="colour the region by d-mode combination (default) or a quantity")
     wk.add_argument("--jobs", type=_count("--jobs"), default=None,
                     help="parallel processes for several orientations (default: the number of cores)")
     wk.add_argument("--save", metavar="FILE", help="save the maps (.npz; one file per orientation, suffixed)")
     wk.add_argument("--json", action="store_true", help="print a JSON summary")
-    wk.add_argument("--plot", metavar="FILE", help="figure like Fig. 17, one panel per orientation")
+    wk.add_argument("--plot", metavar="FILE",
+                    help="figure like Fig. 17: one panel per aspect and orientation, same axes and colours "
+                         "(pages of 20: FILE, FILE_2, ...)")
     wk.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     from .explore.cli import add_explore_parser
     from .study.cli import add_study_parser
@@ -268,7 +276,7 @@ def _cmd_workspace(a) -> int:
     mech = _load_mech(a.mechanism)
     default_grid(mech, a.step, a.bounds)  # validate before starting any work
     kw = dict(seed=tuple(a.seed), load=a.load, step=a.step, bounds=a.bounds, max_mode=a.max_mode,
-              all_aspects=not a.first_aspect)
+              all_aspects=not a.first_aspect, constrained=a.constrained, collisions=a.collisions)
     thetas = [math.radians(t) for t in a.theta]
     jobs = min(len(thetas), a.jobs or os.cpu_count() or 1)
     show = _progress(a)
@@ -297,12 +305,17 @@ def _cmd_workspace(a) -> int:
         out = []
         for ws in results:
             out.append({"theta": float(math.degrees(ws.theta)), "step": ws.step, "seed": list(ws.seed),
-                        "elapsed": ws.elapsed, "message": ws.message,
+                        "elapsed": ws.elapsed, "message": ws.message, "region": ws.region,
+                        "constraints": list(ws.constraints), "constrained": ws.constrained, "grown": ws.grown,
                         "aspects": [{"seeds": [s + 1 for s in mp.seeds], "cells": mp.area_cells,
                                      "area": mp.area_cells * ws.step**2,
+                                     "feasible_cells": mp.feasible_cells,
+                                     "feasible_area": mp.feasible_cells * ws.step**2,
                                      "modes": sorted({"".join(map(str, q)) for q in mp.modes[mp.reached]}),
                                      "boundary_ik_cells": int(mp.boundary_ik.sum()),
                                      "boundary_fk_cells": int(mp.boundary_fk.sum()),
+                                     "boundary_infeasible_cells": int(mp.boundary_infeasible.sum()),
+                                     "boundary_edge_cells": int(mp.boundary_edge.sum()),
                                      "unresolved_cells": int(mp.boundary_seam.sum())} for mp in ws.maps]})
         print(_dump({"problem": "workspace", "mechanism": mech.name, "workspaces": out}))
     else:
@@ -312,10 +325,10 @@ def _cmd_workspace(a) -> int:
         if ws.message:
             print(f"flexkin workspace: theta = {math.degrees(ws.theta):g} deg: {ws.message}", file=sys.stderr)
     if a.plot:
-        from .plot.workspace import plot_workspace
+        from .plot.workspace import write_workspace_pages
 
-        plot_workspace(results, a.plot, color_by=a.color)
-        _written(a.plot)
+        for f in write_workspace_pages(results, a.plot, color_by=a.color):
+            _written(f)
     return 0
 
 
