@@ -169,7 +169,9 @@ def _snap_kernel(code, p0, p1, z, direction, iters, max_shift, out, tips) -> Non
         px, py = z[k, 0] + t * nx, z[k, 1] + t * ny
         unified_eval(px, py, q, gr)
         g, gx, gy, _a, _ax, _ay, _ok = condition_eval(code, p0, p1, q[X], q[Y])
-        if not (np.isfinite(g) and abs(t) < max_shift[k]):
+        dg = (gx * gr[X, 0] + gy * gr[Y, 0]) * nx + (gx * gr[X, 1] + gy * gr[Y, 1]) * ny
+        settled = abs(g) <= 1e-9 * abs(dg) + 1e-13
+        if not (settled and abs(t) < max_shift[k]):
             px, py = z[k, 0], z[k, 1]
             unified_eval(px, py, q, gr)
         out[k, 0], out[k, 1] = px, py
