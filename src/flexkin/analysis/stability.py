@@ -183,7 +183,7 @@ def _angles(chart, z, alpha, s, out) -> None:
                 out[k, i, j] = alpha[k, i] + th[j]
 
 
-@njit
+@njit(fastmath={"reassoc", "contract"})
 def _project(Q, C, B) -> int:
     """``Q`` (p, p) restricted to the null space of ``C`` (m, p) in an orthonormal basis: written
     to ``B[:p - r, :p - r]``; returns the rank ``r`` of the constraints.  ``Q`` is overwritten.
