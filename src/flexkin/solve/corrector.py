@@ -65,6 +65,12 @@ def _project_rods(x: np.ndarray, chart: np.ndarray, rod_col: np.ndarray) -> None
 
 
 @njit(cache=True)
+def _project_all(X: np.ndarray, charts: np.ndarray, rod_col: np.ndarray) -> None:
+    for k in range(X.shape[0]):
+        _project_rods(X[k], charts[k], rod_col)
+
+
+@njit(cache=True)
 def newton_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_ref,
                   X, charts, load, cols, cap, tol, max_iter, active, norm_out, iters_out) -> None:
     """Damped Newton on the rows of ``X`` flagged ``active`` (in place); see the module docstring."""
@@ -168,12 +174,7 @@ def newton(system: System, X: NDArray, charts: NDArray, load: NDArray, fixed: st
     if cap is None:
         cap = default_cap(system, fixed)
     n = len(X)
-    for k in range(n):  # start inside the charts
-        for i in range(3):
-            if charts[k, i] != CHART_WRENCH:
-                c = lay.rod[i].start
-                project_row = X[k, c:c + 2]
-                project(int(charts[k, i]), project_row)
+    _project_all(X, charts, system.rod_col)  # start inside the charts
     norm = np.full(n, np.inf)
     iters = np.zeros(n, np.int64)
     active = np.ones(n, bool)
