@@ -20,7 +20,7 @@ from ..results import FKDiagnostics, KinematicsResult, Solution
 from ..system import System
 from .corrector import newton
 from .finish import finish_solutions
-from .fk_search import fk_starts
+from .fk_search import MAX_NODES, fk_starts
 from .ik import RESIDUAL_TOL, as_load
 
 __all__ = ["fk"]
@@ -46,8 +46,9 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     stable_only : bool
         Keep only the stable equilibria (default: all, stable and unstable).
     time_budget : float, optional
-        Seconds for the global search; when it runs out, the candidates found so far are
-        refined and the result says ``complete = False``.
+        Seconds for the whole FK: the global search stops early enough for its candidates to
+        be refined in time; the result then says ``complete = False`` (and so it does when
+        the search exhausts its node budget).
 
     Returns
     -------
@@ -78,9 +79,10 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
                "the least loaded one is reported")
     if not complete:
-        why = ("time budget exhausted" if deadline is not None and time.perf_counter() > deadline
-               else "search budget exhausted near a singular configuration")
-        msg = f"{why}: the solution list may be incomplete" + ("" if sols else "; " + msg)
+        why = ("time budget exhausted" if time_budget is not None and nodes < MAX_NODES
+               else f"search budget exhausted ({nodes} node triples examined)")
+        msg = f"{why}: the global search did not finish, the solution list may be incomplete" + \
+            ("" if sols else "; " + msg)
     res = KinematicsResult(tuple(sols), complete, msg, time.perf_counter() - t0, FKDiagnostics(**diag), "fk", mech,
                            given, wl, max_mode)
     return res.select(stable_only=True) if stable_only else res

@@ -362,13 +362,26 @@ def _trees(mech, max_mode: int, stride: int):
     return cat("lo"), cat("hi"), np.ascontiguousarray(child), cat("zc"), cat("zh"), cat("q"), cat("g"), roots, charts
 
 
+#: estimated cost of refining one start (s): the FK Newton of a clamped rod's start, measured
+#: ~0.6 ms on the unit 3-PF (pinned starts are ~20x cheaper); used to leave the refinement its
+#: share of a time budget
+REFINE_COST = 6e-4
+#: node triples the search examines at most
+MAX_NODES = 50_000_000
+
+
 def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: int, *, stride: int = 4,
               eps_tip: float = 0.01, eps_force: float = 0.05, eps_ang: float = 0.05, reach: float = 1.0,
-              max_nodes: int = 50_000_000, deadline: float | None = None, fallback: int = 20_000
+              max_nodes: int = MAX_NODES, deadline: float | None = None, fallback: int = 20_000
               ) -> tuple[NDArray[np.float64], bool, int]:
     """Starting points (n, n_unknowns) for the FK Newton, whether the search completed, and the
-    number of node triples examined.  When the budget runs out, the centres of up to
-    ``fallback`` unresolved triples (a deterministic subsample) are returned as well."""
+    number of node triples examined.
+
+    When the node budget ``max_nodes`` runs out, the centres of up to ``fallback`` unresolved
+    triples (a deterministic subsample) are returned as well.  With a ``deadline``
+    (``time.perf_counter()`` value) the search stops early enough for the refinement of its
+    starts (:data:`REFINE_COST` each) to end by then, and the unresolved centres are limited to
+    what the remaining time can refine."""
     lo, hi, child, zc, zh, nq, ng, roots, charts = _trees(mech, max_mode, stride)
     u = np.asarray(inputs, dtype=float)
     A, al, L = system.clamps(u[None])
@@ -384,7 +397,7 @@ def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: in
     examined = 0
     w = np.asarray(load, dtype=float)
     while n_stack > 0 and examined < max_nodes:
-        if deadline is not None and time.perf_counter() > deadline:
+        if deadline is not None and time.perf_counter() + REFINE_COST * n_starts > deadline:
             break
         n_stack, n_starts, ex = bnb_kernel(lo, hi, child, zc, zh, nq, ng, roots, charts, A, al, L, system.EI,
                                            clamped, beta,
@@ -398,7 +411,9 @@ def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: in
             stack = np.concatenate([stack, np.empty_like(stack)])
     complete = n_stack == 0
     out = [starts[:n_starts]]
-    if not complete:  # unresolved triples: their centres, fitted pose
+    if deadline is not None:
+        fallback = min(fallback, max(0, int((deadline - time.perf_counter()) / REFINE_COST) - n_starts))
+    if not complete and fallback > 0:  # unresolved triples: their centres, fitted pose
         rest = stack[:n_stack]
         if len(rest) > fallback:
             rest = rest[np.random.default_rng(0).choice(len(rest), fallback, replace=False)]
