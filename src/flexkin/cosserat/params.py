@@ -21,6 +21,16 @@ def circular_shear_coefficient(poisson: float | None) -> float:
 
     ``6 (1 + nu) / (7 + 6 nu)`` (Cowper 1966, J. Appl. Mech. 33:335); ``0.9`` when the
     Poisson ratio is unknown (``None``).
+
+    Parameters
+    ----------
+    poisson : float or None
+        Poisson's ratio nu of the material, or ``None`` if unknown.
+
+    Returns
+    -------
+    float
+        The shear coefficient kappa.
     """
     if poisson is None:
         return 0.9
@@ -158,7 +168,30 @@ def params_for_mechanism(mech: Any, *, G: float | None = None, poisson: float | 
                          distributed_load: Sequence[float] = (0.0, 0.0)) -> tuple[CosseratParams, ...]:
     """One :class:`CosseratParams` per leg from each rod's ``E`` and ``radius``.
 
-    Raises ``ValueError`` naming the leg if a rod lacks ``E`` or ``radius``.
+    Parameters
+    ----------
+    mech : Mechanism
+        The mechanism; every rod needs ``E`` and ``radius``.
+    G : float, optional
+        Shear modulus (Pa) for every rod; default from ``poisson``.
+    poisson : float, optional
+        Poisson's ratio, used for ``G = E / (2 (1 + nu))`` and the shear coefficient.
+    density : float, optional
+        Mass density (kg/m^3); 0 = weightless.
+    shear_coefficient : float, optional
+        Timoshenko shear coefficient kappa; default :func:`circular_shear_coefficient`.
+    distributed_load : (2,) float, optional
+        Extra dead load per unit length (N/m, world frame) on every rod.
+
+    Returns
+    -------
+    tuple of CosseratParams
+        One per leg.
+
+    Raises
+    ------
+    ValueError
+        Naming the leg if a rod lacks ``E`` or ``radius``.
     """
     out = []
     for i, leg in enumerate(mech.legs):

@@ -120,6 +120,24 @@ def auto_steps(length: ArrayLike, EI: ArrayLike, base_force: ArrayLike, base_mom
     Uses the scale ``S = L sqrt(kappa_0^2 + 4 R_max / EI)`` (``kappa_0 = |m0|/EI``,
     ``R_max = |n0| + |f| L``), which bounds the curvature of an elastica, and the measured
     error model ``1e-6 (S/n)^8`` of the 8th-order scheme, with a safety factor 1.3.
+
+    Parameters
+    ----------
+    length, EI : array_like
+        Free length (m) and bending stiffness (N m^2).
+    base_force : (..., 2) array_like
+        Internal force at the clamp (N).
+    base_moment : array_like
+        Moment at the clamp (N m).
+    line_load : (..., 2) array_like
+        Distributed load (N/m).
+    tol : float
+        Relative target error of the tip (> 0).
+
+    Returns
+    -------
+    ndarray of int
+        Step counts, clipped to ``[MIN_STEPS, MAX_STEPS]``.
     """
     if not tol > 0.0:
         raise ValueError(f"tol: must be > 0, got {tol!r}")
@@ -173,15 +191,30 @@ def shoot(clamp: ArrayLike, clamp_angle: ArrayLike, length: ArrayLike, EI: Array
 
     Parameters
     ----------
-    clamp : (..., 2) clamp point (m).  clamp_angle : (...) material angle th(0) (rad).
-    length : (...) free length L (m).  EI : (...) bending stiffness (N m^2).
-    base_force : (..., 2) n(0) (N, world).  base_moment : (...) m(0) = EI th'(0) (N m).
-    axial_compliance, shear_compliance : (...) ``1/EA`` and ``1/(kappa G A)`` (1/N), 0 = rigid.
-    line_load : (..., 2) distributed force per unit length f (N/m, world frame, dead load).
-    tau : (...) homotopy parameter multiplying the compliances and ``line_load``.
-    steps : (...) int, optional Runge–Kutta steps (default :func:`auto_steps` with ``tol``).
-    jacobian : also integrate the variational equations.
-    _allow_negative_length : internal: a negative length integrates backwards from a tip state.
+    clamp : (..., 2) array_like
+        Clamp point (m).
+    clamp_angle : (...) array_like
+        Material angle th(0) (rad).
+    length : (...) array_like
+        Free length L (m).
+    EI : (...) array_like
+        Bending stiffness (N m^2).
+    base_force : (..., 2) array_like
+        Internal force n(0) (N, world).
+    base_moment : (...) array_like
+        m(0) = EI th'(0) (N m).
+    axial_compliance, shear_compliance : (...) array_like
+        ``1/EA`` and ``1/(kappa G A)`` (1/N); 0 = rigid.
+    line_load : (..., 2) array_like
+        Distributed force per unit length f (N/m, world frame, dead load).
+    tau : (...) array_like
+        Homotopy parameter multiplying the compliances and ``line_load``.
+    steps : (...) int, optional
+        Runge–Kutta steps (default :func:`auto_steps` with ``tol``).
+    tol : float
+        Target error of the automatic step count.
+    jacobian : bool
+        Also integrate the variational equations.
 
     Returns
     -------
@@ -220,6 +253,22 @@ def rod_shape(clamp: ArrayLike, clamp_angle: ArrayLike, length: ArrayLike, EI: A
 
     The step count is a multiple of ``n_points - 1`` not below :func:`auto_steps`, the same for
     the whole batch, so the samples are exact Runge–Kutta nodes.
+
+    Parameters
+    ----------
+    clamp, clamp_angle, length, EI, base_force, base_moment : array_like
+        The rods, as in :func:`shoot`.
+    axial_compliance, shear_compliance, line_load, tau : array_like
+        The Cosserat terms and the homotopy parameter, as in :func:`shoot`.
+    n_points : int
+        Samples per rod (>= 2).
+    tol : float
+        Target error of the automatic step count.
+
+    Returns
+    -------
+    RodShape
+        Positions, angles, internal force and moment, strains and energies at the samples.
     """
     if int(n_points) < 2:
         raise ValueError(f"n_points: must be >= 2, got {n_points!r}")

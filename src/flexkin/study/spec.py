@@ -406,6 +406,15 @@ def study_from_dict(data: Mapping[str, Any], source: str = "<dict>", base_dir: s
 def load_study(path: str | os.PathLike[str]) -> StudySpec:
     """Read and validate a study file (TOML).
 
+    Parameters
+    ----------
+    path : str or path-like
+        The study file; its ``mechanism`` is resolved relative to it.
+
+    Returns
+    -------
+    StudySpec
+
     Raises
     ------
     StudyError

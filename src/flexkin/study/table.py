@@ -134,7 +134,18 @@ def write_table(rows: Iterable[Mapping[str, Any]], columns: Sequence[tuple[str, 
 
 
 def read_table(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
-    """The rows of a ``results.parquet`` (or of the directory holding it) as dicts."""
+    """The rows of a ``results.parquet`` (or of the directory holding it) as dicts.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``results.parquet`` or the study's output directory.
+
+    Returns
+    -------
+    list of dict
+        One per (design, orientation) row.
+    """
     import pyarrow.parquet as pq
 
     p = Path(path)
