@@ -123,21 +123,27 @@ def _coarse(N: int) -> int:
 
 # ---- assembly (compiled) ------------------------------------------------------------------------
 @njit
-def _assemble(theta, force, ell, e, arm, clamped, psi, w, K, tip, Q, C) -> None:
+def _assemble(theta, force, ell, e, arm, clamped, psis, ws, Ks, tips, Q, C) -> None:
     """The second variation ``Q`` (p, p) and the constraints ``C`` (m, p) of one equilibrium in
     the metric-orthonormal coordinates (rod i's modes scaled by ``sqrt(ell_i)``, then the pose).
 
-    ``theta`` (3, Nq) world tangent angles at the nodes, ``force`` (3, 2) tip forces (in F_ref),
-    ``ell``, ``e`` (3,) lengths (L_ref) and stiffnesses (EI_ref), ``arm`` (3, 2) ``B_i - P`` (L_ref).
+    ``theta`` (3, Nq) world tangent angles at the nodes (rod i: its first ``len(ws[i])``),
+    ``force`` (3, 2) tip forces (in F_ref), ``ell``, ``e`` (3,) lengths (L_ref) and stiffnesses
+    (EI_ref), ``arm`` (3, 2) ``B_i - P`` (L_ref); rod i in its own basis ``psis[i]``, ``ws[i]``,
+    ``Ks[i]``, ``tips[i]`` (:func:`basis`).
     """
-    N = psi.shape[0]
-    nq = psi.shape[1]
     Q[:, :] = 0.0
     C[:, :] = 0.0
-    ip = 3 * N
+    ip = psis[0].shape[0] + psis[1].shape[0] + psis[2].shape[0]
     row = 0
+    c0 = 0
     for i in range(3):
-        c0 = i * N
+        psi = psis[i]
+        w = ws[i]
+        K = Ks[i]
+        tip = tips[i]
+        N = psi.shape[0]
+        nq = psi.shape[1]
         sl = math.sqrt(ell[i])
         kf = e[i] / (ell[i] * ell[i])
         for a in range(N):
@@ -170,6 +176,7 @@ def _assemble(theta, force, ell, e, arm, clamped, psi, w, K, tip, Q, C) -> None:
             C[row, ip + 2] = -1.0
             row += 1
         Q[ip + 2, ip + 2] -= force[i, 0] * arm[i, 0] + force[i, 1] * arm[i, 1]
+        c0 += N
 
 
 @njit
@@ -250,38 +257,42 @@ def _project(Q, C, B) -> int:
 
 
 @njit(parallel=True)
-def _spectra(ch, z, alpha, force, ell, e, arm, clamped, psi, w, K, tip, s, coarse, ev, evc, scale) -> None:
+def _spectra(ch, z, alpha, force, ell, e, arm, clamped, psis, ws, Ks, tips, ss, coarse, ev, evc, scale) -> None:
     """Per equilibrium ``k`` (in parallel over the cores): the tangent angles at the quadrature
     nodes, the second variation and its constraints (:func:`_assemble`), and the lowest
-    eigenvalues on the admissible subspace (:func:`_project`) with ``N`` modes per rod
-    (``ev[k]``) and with the nested first ``coarse`` modes (``evc[k]``); ``scale[k]`` is the
-    largest diagonal entry."""
+    eigenvalues on the admissible subspace (:func:`_project`) with rod i in its basis of
+    ``N_i`` modes (``ev[k]``) and in the nested first ``coarse[i]`` of them (``evc[k]``);
+    ``scale[k]`` is the largest diagonal entry."""
     n = z.shape[0]
-    N, nq = psi.shape
-    p = 3 * N + 3
+    nq = max(ss[0].shape[0], max(ss[1].shape[0], ss[2].shape[0]))
+    p = psis[0].shape[0] + psis[1].shape[0] + psis[2].shape[0] + 3
     m = 6
     for i in range(3):
         if clamped[i]:
             m += 1
-    pc = 3 * coarse + 3
+    pc = coarse[0] + coarse[1] + coarse[2] + 3
     keep = np.empty(pc, np.int64)
+    a0 = 0
+    f0 = 0
     for i in range(3):
-        for a in range(coarse):
-            keep[i * coarse + a] = i * N + a
+        for a in range(coarse[i]):
+            keep[a0 + a] = f0 + a
+        a0 += coarse[i]
+        f0 += psis[i].shape[0]
     for a in range(3):
-        keep[3 * coarse + a] = 3 * N + a
+        keep[pc - 3 + a] = p - 3 + a
     for k in prange(n):
         theta = np.empty((3, nq))
-        th = np.empty(nq)
         Q = np.empty((p, p))
         C = np.empty((m, p))
         Qc = np.empty((pc, pc))
         Cc = np.empty((m, pc))
         for i in range(3):
-            tangents(ch[k, i], z[k, i], s, th)
-            for j in range(nq):
+            th = np.empty(ss[i].shape[0])
+            tangents(ch[k, i], z[k, i], ss[i], th)
+            for j in range(th.shape[0]):
                 theta[i, j] = alpha[k, i] + th[j]
-        _assemble(theta, force[k], ell[k], e, arm[k], clamped, psi, w, K, tip, Q, C)
+        _assemble(theta, force[k], ell[k], e, arm[k], clamped, psis, ws, Ks, tips, Q, C)
         sc = 0.0
         for a in range(p):
             sc = max(sc, abs(Q[a, a]))
@@ -301,16 +312,16 @@ def _spectra(ch, z, alpha, force, ell, e, arm, clamped, psi, w, K, tip, s, coars
 
 
 #: threads over the equilibria pay off from this many on (below, the kernel runs on one thread)
-PARALLEL_MIN = 24
+PARALLEL_MIN = 8
 
 
-def _spectrum(system: System, X: NDArray, charts: NDArray, N: int, coarse: int
+def _spectrum(system: System, X: NDArray, charts: NDArray, N: tuple[int, int, int], coarse: tuple[int, int, int]
               ) -> tuple[NDArray, NDArray, NDArray]:
-    """Eigenvalues (n, p - m), ascending, of the discretised second variation with ``N`` modes
-    per rod, the scale of its diagonal, and the eigenvalues with the first ``coarse`` modes of
+    """Eigenvalues (n, p - m), ascending, of the discretised second variation with ``N[i]`` modes
+    for rod i, the scale of its diagonal, and the eigenvalues with the first ``coarse[i]`` modes of
     each rod (a nested subspace: the same quadrature, a sub-basis); compiled per equilibrium
     (:func:`_spectra`)."""
-    bs = basis(N)
+    bs = [basis(int(v)) for v in N]
     n = len(X)
     lay = system.layout
     z = np.zeros((n, 3, 3))
@@ -331,15 +342,16 @@ def _spectrum(system: System, X: NDArray, charts: NDArray, N: int, coarse: int
     e = system.EI / system.EI_ref
     clamped = np.asarray(system.clamped, dtype=np.bool_)
     m = 6 + int(np.count_nonzero(clamped))
-    ev = np.empty((n, 3 * N + 3 - m))
-    evc = np.empty((n, 3 * coarse + 3 - m))
+    ev = np.empty((n, sum(N) + 3 - m))
+    evc = np.empty((n, sum(coarse) + 3 - m))
     scale = np.empty(n)
     threads = numba.get_num_threads()
     numba.set_num_threads(threads if n >= PARALLEL_MIN else 1)
     try:
         _spectra(ch, z, np.ascontiguousarray(alpha, dtype=float), force, np.ascontiguousarray(ell, dtype=float),
-                 np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(arm), clamped, bs.psi, bs.w, bs.K, bs.tip,
-                 bs.s, int(coarse), ev, evc, scale)
+                 np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(arm), clamped,
+                 tuple(b.psi for b in bs), tuple(b.w for b in bs), tuple(b.K for b in bs), tuple(b.tip for b in bs),
+                 tuple(b.s for b in bs), np.array(coarse, dtype=np.int64), ev, evc, scale)
     finally:
         numba.set_num_threads(threads)
     return ev, scale, evc
@@ -355,7 +367,7 @@ class StabilityArrays:
     margin : (n,) smallest eigenvalue of the second variation (EI_ref / L_ref).
     resolution : (n,) its guaranteed resolution.
     index : (n,) number of negative eigenvalues, -1 where unresolved.
-    modes : (n,) Legendre modes per rod of the final resolution.
+    modes : (n,) Legendre modes of the final resolution (of the rod with the most).
     """
 
     stable: NDArray[np.int8]
@@ -389,27 +401,29 @@ def mechanism_stability(system: System, X: NDArray, charts: NDArray) -> Stabilit
     if n == 0:
         return StabilityArrays(np.zeros(0, np.int8), out_m, out_r, out_i, out_n)
     q, _ = system.unit_rods(X, charts)
-    N0 = np.array([_modes_for(float(np.max(np.nan_to_num(q[k, :, PHI])))) for k in range(n)])
+    # modes per rod from its own lambda L
+    N = np.vectorize(lambda v: _modes_for(float(v)), otypes=[np.int64])(np.nan_to_num(q[:, :, PHI]))
     todo = np.arange(n)
-    N = N0.copy()
     with single_threaded_blas():
         while todo.size:
-            for Nv in np.unique(N[todo]):
-                grp = todo[N[todo] == Nv]
-                ev2, sc2, ev1 = _spectrum(system, X[grp], charts[grp], int(Nv), _coarse(int(Nv)))
+            keys, inv = np.unique(N[todo], axis=0, return_inverse=True)
+            for g, Nv in enumerate(keys):
+                grp = todo[inv.ravel() == g]
+                Nt = tuple(int(v) for v in Nv)
+                ev2, sc2, ev1 = _spectrum(system, X[grp], charts[grp], Nt, tuple(_coarse(v) for v in Nt))
                 k = min(ev1.shape[1], ev2.shape[1], 6)
                 floor = ROUNDOFF * sc2
                 err = 2.0 * np.abs(ev2[:, :k] - ev1[:, :k]) + floor[:, None]
                 res = err[:, 0]
                 mu = ev2[:, 0]
-                out_m[grp], out_r[grp], out_n[grp] = mu, res, Nv
+                out_m[grp], out_r[grp], out_n[grp] = mu, res, max(Nt)
                 near = np.abs(ev2[:, :k]) <= 3.0 * err
                 neg = np.sum(ev2 < 0.0, axis=1)
                 out_i[grp] = np.where(np.any(near, axis=1), -1, neg)
             # refine where the verdict or the index is undecided, or the margin is not known to 1 %
             ok = ((np.abs(out_m[todo]) > 3.0 * out_r[todo]) & (out_r[todo] <= 1e-2 * (1.0 + np.abs(out_m[todo])))
                   & ((out_i[todo] >= 0) | (out_m[todo] > 3.0 * out_r[todo])))
-            todo = todo[~ok & (N[todo] < N_MAX)]
+            todo = todo[~ok & np.any(N[todo] < N_MAX, axis=1)]
             if todo.size:
                 N[todo] = np.minimum(N_MAX, 8 * np.ceil(1.5 * N[todo] / 8)).astype(np.int64)
     stable = np.where(out_m > 3.0 * out_r, 1, np.where(out_m < -3.0 * out_r, 0, -1)).astype(np.int8)
