@@ -44,7 +44,23 @@ SINGULAR_COND = 1e14
 def system_blocks(system: System, X: NDArray, charts: NDArray, load: NDArray
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """``(G_z, G_x, G_rho)`` of the scaled equations with respect to the chart coordinates, the
-    dimensionless pose ``(x/L_ref, y/L_ref, theta)`` and the dimensionless inputs."""
+    dimensionless pose ``(x/L_ref, y/L_ref, theta)`` and the dimensionless inputs.
+
+    Parameters
+    ----------
+    system : System
+        The mechanism's equation system (:meth:`System.from_mechanism`).
+    X : ndarray (n, n_unknowns)
+        Equilibria.
+    charts : ndarray (n, 3)
+        Their rods' charts.
+    load : ndarray (3,)
+        Load wrench ``(F_x, F_y, M_z)`` on the platform (N, N, N m).
+
+    Returns
+    -------
+    G_z, G_x, G_rho : ndarray (n, n_equations, .)
+    """
     _, J = system.jacobian(X, charts, load)
     lay = system.layout
     sx = np.array([system.L_ref, system.L_ref, 1.0])
@@ -98,7 +114,23 @@ def _solve_block(A: NDArray, B: NDArray, rows: slice) -> NDArray:
 
 
 def kinematic_jacobians(system: System, X: NDArray, charts: NDArray, load: NDArray) -> JacobianArrays:
-    """J_IK and J_FK (Eq. 16) at ``n`` refined equilibria ``X`` (n, n_unknowns)."""
+    """J_IK and J_FK (Eq. 16) at ``n`` refined equilibria ``X`` (n, n_unknowns).
+
+    Parameters
+    ----------
+    system : System
+        The mechanism's equation system (:meth:`System.from_mechanism`).
+    X : ndarray (n, n_unknowns)
+        Equilibria.
+    charts : ndarray (n, 3)
+        Their rods' charts.
+    load : ndarray (3,)
+        Load wrench ``(F_x, F_y, M_z)`` on the platform (N, N, N m).
+
+    Returns
+    -------
+    JacobianArrays
+    """
     Gz, Gx, Gu = system_blocks(system, X, charts, load)
     nz = Gz.shape[2]
     A_ik = np.concatenate([Gz, Gu], axis=2)

@@ -390,7 +390,21 @@ class StabilityArrays:
 
 
 def mechanism_stability(system: System, X: NDArray, charts: NDArray) -> StabilityArrays:
-    """Stability of equilibria ``X`` (n, n_unknowns) in ``charts`` (n, 3), actuators locked."""
+    """Stability of equilibria ``X`` (n, n_unknowns) in ``charts`` (n, 3), actuators locked.
+
+    Parameters
+    ----------
+    system : System
+        The mechanism's equation system (:meth:`System.from_mechanism`).
+    X : ndarray (n, n_unknowns)
+        Equilibria.
+    charts : ndarray (n, 3)
+        Their rods' charts.
+
+    Returns
+    -------
+    StabilityArrays
+    """
     X = np.atleast_2d(np.asarray(X, dtype=float))
     charts = np.atleast_2d(np.asarray(charts, dtype=np.int64))
     n = len(X)
@@ -436,7 +450,23 @@ def output_stiffness(system: System, X: NDArray, charts: NDArray, load: NDArray)
     """The platform's stiffness with the actuators locked, ``K = dW/dq`` (n, 3, 3): the change of
     the load wrench ``W = (F_x, F_y, M_z)`` that holds the platform displaced by ``dq = (dx, dy,
     dtheta)`` at equilibrium.  It is the Hessian of the potential reduced to the pose; units N/m
-    (force/translation), N (force/rotation and moment/translation), N m/rad (moment/rotation)."""
+    (force/translation), N (force/rotation and moment/translation), N m/rad (moment/rotation).
+
+    Parameters
+    ----------
+    system : System
+        The mechanism's equation system (:meth:`System.from_mechanism`).
+    X : ndarray (n, n_unknowns)
+        Equilibria.
+    charts : ndarray (n, 3)
+        Their rods' charts.
+    load : ndarray (3,)
+        Load wrench ``(F_x, F_y, M_z)`` on the platform (N, N, N m).
+
+    Returns
+    -------
+    ndarray (n, 3, 3)
+    """
     from .jacobian import system_blocks
 
     Gz, Gx, _ = system_blocks(system, X, charts, load)
@@ -486,6 +516,19 @@ def rod_stability(rod: RodState, tip: str = "pinned", slider_angle: float | None
     The rod must be an equilibrium of that problem (for ``"free"`` and ``"slider"`` the tip
     force is the dead load).  Same discretisation as :func:`mechanism_stability`, with the
     rod's own ``L`` and ``EI`` as units.
+
+    Parameters
+    ----------
+    rod : RodState
+        The rod (its clamp angle, chart coordinates, length, EI and tip force are used).
+    tip : {"pinned", "slider", "free", "clamped"}
+        The tip condition.
+    slider_angle : float, optional
+        Direction of the slider's line (rad, world); required for ``tip="slider"``.
+
+    Returns
+    -------
+    RodStability
     """
     if tip not in ("pinned", "slider", "free", "clamped"):
         raise ValueError(f"tip must be 'free', 'pinned', 'slider' or 'clamped', got {tip!r}")
