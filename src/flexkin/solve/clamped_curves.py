@@ -20,6 +20,7 @@ coordinates), like :func:`flexkin.solve.curves.leg_curves` does for pinned legs.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -297,6 +298,37 @@ def _trace_all(Z, code, p0, p1, tgt, max_mode, lam_max, turn_max, lam_nodes, nps
     return n_lines
 
 
+@lru_cache(maxsize=2)
+def _elliptic_grids(max_mode: int) -> tuple[NDArray[np.float64], ...]:
+    """Features of the libration and rotation grids of :mod:`flexkin.rod.free_atlas`."""
+    from ..rod.free_atlas import FEATURES, fill_libration, fill_rotation, libration_grid, rotation_grid
+
+    out = []
+    for grid, fill in ((libration_grid, fill_libration), (rotation_grid, fill_rotation)):
+        a, b, c = grid(max_mode)
+        F = np.empty((len(a), len(b), len(c), FEATURES))
+        fill(a, b, c, F)
+        out.append(F)
+    return tuple(out)
+
+
+def _elliptic_seeds(max_mode: int, code: int, p0: float, p1: float, tgt: float, atlas) -> tuple[NDArray, NDArray]:
+    """Seeds near the separatrix, which the wrench atlas cannot resolve (its tip depends on the
+    wrench with a condition number like ``1/k'^2``): cells of the elliptic grids bracketing both
+    conditions, as wrench-chart points and their wrench-atlas cells."""
+    Z, C = [], []
+    for F in _elliptic_grids(max_mode):
+        valid = (F[..., 9] <= lambda_max(max_mode)) & (F[..., 10] <= max_mode) & np.all(np.isfinite(F), axis=-1)
+        cells = _seeds(F[..., 0], F[..., 1], F[..., 4], valid, code, p0, p1, tgt, 0.25)
+        for i, j, k in cells:
+            z = np.ascontiguousarray(F[i, j, k, 6:9])
+            ci = _cell(z, atlas.lam, len(atlas.psi), len(atlas.t), max_mode)
+            if ci[0] >= 0:
+                Z.append(z)
+                C.append(ci)
+    return np.array(Z, float).reshape(-1, 3), np.array(C, np.int64).reshape(-1, 3)
+
+
 def clamped_leg_curve(mech, i: int, B: NDArray[np.float64], theta: float, max_mode: int,
                       force_tol: float = 0.05) -> LegCurve:
     """Curves of clamped leg ``i`` (0-based) with its attach point at ``B`` (world) and the
@@ -309,6 +341,8 @@ def clamped_leg_curve(mech, i: int, B: NDArray[np.float64], theta: float, max_mo
     cells = _seeds(atlas.x, atlas.y, atlas.th, atlas.valid, int(code), float(par[0]), float(par[1]), tgt, 0.25)
     Z = np.ascontiguousarray(atlas.wrench(cells[:, 0] + 0.5, cells[:, 1] + 0.5, cells[:, 2] + 0.5)) \
         if len(cells) else np.zeros((0, 3))
+    Ze, Ce = _elliptic_seeds(max_mode, int(code), float(par[0]), float(par[1]), tgt, atlas)
+    Z, cells = np.ascontiguousarray(np.concatenate([Z, Ze])), np.ascontiguousarray(np.concatenate([cells, Ce]))
     visited = np.zeros((len(atlas.lam) - 1, len(atlas.psi), len(atlas.t) - 1), bool)
     out = np.empty((40 * MAX_POINTS, 3))
     starts = np.zeros(len(Z) + 2, np.int64)
