@@ -1,0 +1,273 @@
+"""Rods clamped (welded) to the platform (paper §8, issue 14) against independent references.
+
+* classical single-rod results through ``flexkin.solve_rod(tip_angle=...)``: the fixed-guided
+  beam under a small transverse tip displacement (tip force 12 EI delta / L^3, end moments
+  +-6 EI delta / L^2) and the first buckled clamped-clamped column (axial force -> 4 pi^2 EI/L^2
+  as the end shortening -> 0);
+* every returned rod and every rod of the IK solutions shot from its clamp by scipy's DOP853
+  with the reported base moment and tip force: tip point, tip tangent and tip moment agree;
+* completeness of the IK of a symmetric (``examples/unit_3pff.toml``) and an asymmetric mixed
+  pinned/clamped mechanism (``examples/mixed_clamped.toml``) against the independent
+  multi-start oracle (``tests/ik_oracle.py`` with ``leg_curves``), whose every solution flexkin
+  must list; FK round trips and FK against ``fk_oracle`` (slow);
+* stability of the clamped mechanisms' equilibria against the discretised-energy oracle
+  (``tests/stability_oracle.py``);
+* the JSON of pinned mechanisms: SPEC §4 keys, ``tip_moment`` exactly 0.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import flexkin
+
+sys.path.insert(0, os.path.dirname(__file__))
+import ik_oracle as O  # noqa: E402
+import stability_oracle as S  # noqa: E402
+
+try:
+    from oracles import REPORT  # type: ignore
+except ImportError:  # pragma: no cover
+    REPORT = {}
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+#: the oracle's quick configuration: rods turning by at most pi, a few hundred random starts
+ORACLE_QUICK = dict(max_mode=2, max_turn=math.pi, n_starts=300, seed=3)
+CASES = {"sym": ("unit_3pff.toml", (0.0, 0.0, math.radians(20.0))),
+         "mixed": ("mixed_clamped.toml", (0.02, -0.05, 0.1))}
+
+
+def record(key, value):
+    REPORT[f"clamped: {key}"] = value
+
+
+@functools.cache
+def mech(name: str):
+    return flexkin.load_mechanism(EXAMPLES / CASES[name][0])
+
+
+@functools.cache
+def flex_ik(name: str):
+    return flexkin.ik(mech(name), CASES[name][1])
+
+
+@functools.cache
+def oracle_ik(name: str):
+    m = mech(name)
+    return O.oracle_ik(m, CASES[name][1], load=m.load, **ORACLE_QUICK)
+
+
+def shoot(rod, n_eval: int = 2):
+    """Integrate the rod from its clamp (x, y, theta, m) with its tip force and base moment."""
+    f = np.asarray(rod.tip_force, float)
+
+    def rhs(s, y):
+        return [math.cos(y[2]), math.sin(y[2]), y[3] / rod.EI, f[0] * math.sin(y[2]) - f[1] * math.cos(y[2])]
+
+    y0 = [rod.clamp[0], rod.clamp[1], rod.clamp_angle, rod.base_moment]
+    sol = solve_ivp(rhs, (0.0, rod.length), y0, method="DOP853", rtol=1e-12, atol=1e-13 * max(1.0, abs(rod.base_moment)))
+    return sol.y[:, -1]
+
+
+def ode_errors(rod):
+    """(tip distance / L, tip tangent error (mod 2 pi), tip moment error relative to the rod's
+    moment scale EI/L (1 + Lambda L)) of one rod."""
+    y = shoot(rod)
+    lam = math.sqrt(math.hypot(*rod.tip_force) * rod.length**2 / rod.EI)
+    return (math.hypot(y[0] - rod.tip[0], y[1] - rod.tip[1]) / rod.length,
+            abs(math.remainder(y[2] - rod.tip_angle, 2 * math.pi)),
+            abs(y[3] - rod.tip_moment) * rod.length / rod.EI / (1.0 + lam))
+
+
+def ode_tol(rod) -> float:
+    """Shooting amplifies errors like exp(Lambda L) along a taut rod, Lambda = sqrt(R L^2/EI)."""
+    lam = math.sqrt(math.hypot(*rod.tip_force) * rod.length**2 / rod.EI)
+    return max(1e-8, 1e-13 * math.exp(lam))
+
+
+# ======================================================================================
+# 1. classical results for one rod clamped at both ends
+# ======================================================================================
+@pytest.mark.parametrize("L, EI", [(1.0, 1.0), (0.7, 2.5)])
+def test_fixed_guided_beam_stiffness(L, EI):
+    """Tip moved by +-delta transversally, tangent kept along the clamp: linear beam theory gives
+    the tip force 12 EI delta / L^3 and end moments m(0) = +6 EI delta / L^2, m(L) = -6 EI delta /
+    L^2 (SPEC §2: moment ON the rod tip).  The tip is placed 0.6 delta^2/L short of L (the
+    inextensible rod's shortening), so the axial force N is of higher order; its geometric
+    stiffness 6 N / (5 L) (beam-column theory) is accounted for."""
+    delta = 1e-3 * L
+    got = []
+    for d in (delta, -delta):
+        res = flexkin.solve_rod((L - 0.6 * d * d / L, d), L, EI, tip_angle=0.0, max_mode=2)
+        assert res.complete
+        small = [s for s in res.solutions if math.hypot(*s.tip_force) < 1.0 * EI / L**2]
+        assert len(small) == 1, [s.tip_force for s in res.solutions]
+        got.append(small[0])
+    k = (got[0].tip_force[1] - got[1].tip_force[1]) / (2 * delta) * L**3 / EI
+    m0 = (got[0].base_moment - got[1].base_moment) / (2 * delta) * L**2 / EI
+    mL = (got[0].tip_moment - got[1].tip_moment) / (2 * delta) * L**2 / EI
+    record(f"fixed-guided beam L={L} EI={EI}", f"k L^3/EI = {k:.7f}, m0 {m0:.6f}, m(L) {mL:.6f}")
+    # the residual axial tension N (higher order in delta) adds the geometric stiffness 6 N / (5 L)
+    N = 0.5 * (got[0].tip_force[0] + got[1].tip_force[0])
+    assert abs(N) < 1e-3 * EI / L**2
+    assert k == pytest.approx(12.0 + 1.2 * N * L**2 / EI, rel=2e-6)
+    assert k == pytest.approx(12.0, rel=1e-4)
+    assert m0 == pytest.approx(6.0, rel=1e-4) and mL == pytest.approx(-6.0, rel=1e-4)
+    assert got[0].mode == 2 and got[0].joint == "clamped"
+
+
+def test_clamped_clamped_column_buckling_load():
+    """Ends' tangents along the axis, tip short of the clamp by eps L: the first buckled shape's
+    axial force tends to 4 pi^2 EI/L^2 (Timoshenko & Gere) like 1 + eps/2, no shear; the two
+    mirror shapes have equal end moments (the shape is symmetric about mid-span)."""
+    L, EI = 1.3, 0.6
+    Pcr = 4 * math.pi**2 * EI / L**2
+    rel = []
+    for eps in (1e-3, 1e-5):
+        res = flexkin.solve_rod((L * (1 - eps), 0.0), L, EI, tip_angle=0.0, max_mode=3)
+        first = [s for s in res.solutions if abs(s.tip_force[0]) < 1.5 * Pcr]
+        assert len(first) == 2, [(s.mode, s.tip_force) for s in res.solutions]
+        for s in first:
+            assert s.mode == 3  # moment ~ cos(2 pi s/L): two sign changes inside
+            assert abs(s.tip_force[1]) < 1e-9 * Pcr
+            assert s.tip_moment == pytest.approx(s.base_moment, rel=1e-8)
+            rel.append(-s.tip_force[0] / Pcr - 1)
+        assert first[0].base_moment == pytest.approx(-first[1].base_moment, rel=1e-8)
+        assert abs(rel[-1] - eps / 2) < 2 * eps**2 + 1e-10
+    record("clamped-clamped column", "P/Pcr - 1 at eps 1e-3, 1e-5: " + ", ".join(f"{r:.3e}" for r in rel))
+
+
+@pytest.mark.parametrize("tip, tip_angle", [((0.6, 0.3), 1.0), ((0.2, -0.4), -2.5), ((0.7, 0.25), 0.9),
+                                            ((-0.3, 0.1), 3.0)])
+def test_every_rod_solution_matches_the_ode(tip, tip_angle):
+    res = flexkin.solve_rod(tip, 1.0, 1.0, clamp=(0.0, 0.0), clamp_angle=0.3, tip_angle=tip_angle)
+    assert res.solutions
+    for s in res.solutions:
+        e = ode_errors(s)
+        assert max(e) < ode_tol(s), (s.mode, s.tip_force, e)
+        assert abs(math.remainder(s.tip_angle - tip_angle, 2 * math.pi)) < 1e-10
+
+
+# ======================================================================================
+# 2. IK of clamped mechanisms: verified and complete against the oracle
+# ======================================================================================
+@pytest.mark.parametrize("name", list(CASES))
+def test_ik_solutions_match_the_ode(name):
+    res = flex_ik(name)
+    assert res.solutions
+    m = mech(name)
+    for s in res.solutions:
+        for leg, rod in zip(m.legs, s.rods):
+            assert rod.joint == leg.joint
+            if leg.joint == "pinned":
+                assert rod.tip_moment == 0.0
+            else:
+                assert abs(math.remainder(rod.tip_angle - s.pose[2] - leg.tip_angle, 2 * math.pi)) < 1e-9
+            e = ode_errors(rod)
+            assert max(e) < ode_tol(rod), (s.mode_label, e)
+    checks = O.verify_many(m, res.solutions, m.load, CASES[name][1])
+    for s, v in zip(res.solutions, checks):
+        assert v["eq_force"] < 1e-9 and v["eq_moment"] < 1e-9, (s.mode_label, v)
+        assert v["tip_moment_error"] < 1e-6, (s.mode_label, v)
+
+
+def _key(s, g):
+    """Scaled inputs (revolute inputs modulo 2 pi), tip forces and base moments."""
+    u = np.asarray(s.inputs, float) / g.u_scale()
+    u = np.where([k == "revolute" for k in g.kind], np.remainder(u + math.pi, 2 * math.pi) - math.pi, u)
+    return np.concatenate([u, np.ravel([r.tip_force for r in s.rods]) / g.F_ref,
+                           np.array([r.base_moment for r in s.rods]) / (g.F_ref * g.L_ref)])
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_ik_complete_against_the_oracle(name):
+    """Every oracle solution (rods turning by at most pi, away from the separatrix) is listed."""
+    m = mech(name)
+    g = O.Geom.of(m)
+    res = flex_ik(name)
+    sols = oracle_ik(name)
+    fk = [_key(s, g) for s in res.solutions]
+    missed = [s for s in sols if not s.extreme and not any(np.allclose(_key(s, g), k, atol=1e-6) for k in fk)]
+    record(f"IK completeness {name}", f"flexkin {res.by_modes()} ({len(res.solutions)}), oracle {O.by_modes(sols)} "
+           f"({len(sols)}), missed {len(missed)}, {res.elapsed:.1f} s")
+    assert sols
+    assert not missed, [(s.mode_label, s.inputs) for s in missed]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(CASES))
+def test_ik_complete_against_the_full_oracle(name):
+    """The oracle's full study: loops (tangent turning up to 2 pi max_mode), 1000 random starts."""
+    m = mech(name)
+    g = O.Geom.of(m)
+    res = flex_ik(name)
+    sols = O.oracle_ik(m, CASES[name][1], load=m.load, max_mode=2, n_starts=1000, seed=5)
+    fk = [_key(s, g) for s in res.solutions]
+    missed = [s for s in sols if not s.extreme and not any(np.allclose(_key(s, g), k, atol=1e-6) for k in fk)]
+    record(f"IK completeness (full oracle) {name}", f"flexkin {len(res.solutions)}, oracle {O.by_modes(sols)} "
+           f"({len(sols)}), missed {len(missed)}")
+    assert sols
+    assert not missed, [(s.mode_label, s.inputs, [r.turning for r in s.rods]) for s in missed]
+
+
+# ======================================================================================
+# 3. stability against the discretised-energy oracle
+# ======================================================================================
+@pytest.mark.parametrize("name", list(CASES))
+def test_stability_against_the_oracle(name):
+    m = mech(name)
+    res = flex_ik(name)
+    agree = skipped = 0
+    for s in res.solutions:
+        r = S.solution_stability(m, s, m.load)
+        if not r.converged or abs(r.min_eig) < 1e-3 or s.stable is None:
+            skipped += 1
+            continue
+        assert s.stable == r.stable, (s.mode_label, s.inputs, s.stability_index, r.index, r.min_eig)
+        assert s.stability_index == r.index, (s.mode_label, s.inputs, s.stability_index, r.index)
+        agree += 1
+    record(f"stability {name}", f"{agree} agree, {skipped} unresolved")
+    assert agree >= max(1, len(res.solutions) - skipped) and agree >= len(res.solutions) // 2
+
+
+# ======================================================================================
+# 4. FK
+# ======================================================================================
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(CASES))
+def test_fk_round_trip(name):
+    """FK at the inputs of the IK solutions whose rods are least loaded finds their poses, or
+    says that its search was incomplete."""
+    m = mech(name)
+    pose = np.asarray(CASES[name][1])
+    s = min(flex_ik(name).solutions, key=lambda t: max(math.hypot(*r.tip_force) for r in t.rods))
+    res = flexkin.fk(m, s.inputs, time_budget=120.0)
+    found = any(np.allclose(f.pose, pose, atol=1e-7) for f in res.solutions)
+    record(f"FK round trip {name}", f"{len(res.solutions)} poses, found {found}, complete {res.complete}, "
+           f"{res.elapsed:.1f} s")
+    assert found or (not res.complete and "incomplete" in res.message)
+    for f in res.solutions:
+        for rod in f.rods:
+            assert max(ode_errors(rod)) < ode_tol(rod)
+
+
+# ======================================================================================
+# 5. JSON of pinned mechanisms
+# ======================================================================================
+def test_pinned_json_has_zero_tip_moments():
+    m = flexkin.load_mechanism(EXAMPLES / "unit_3pfr.toml")
+    d = flexkin.ik(m, (0.05, -0.03, math.radians(15))).to_dict()
+    assert d["solutions"]
+    for s in d["solutions"]:
+        for r in s["rods"]:
+            assert set(r) == {"mode", "k", "psi_deg", "tip_force", "base_moment", "tip_moment", "energy",
+                              "mode_boundary"}
+            assert r["tip_moment"] == 0.0
