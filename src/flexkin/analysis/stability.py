@@ -47,9 +47,6 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-import numba
-from numba import prange
-
 from ..core.jit import njit
 from ..core.linalg_threads import single_threaded_blas
 from ..results import Stability
@@ -256,9 +253,9 @@ def _project(Q, C, B) -> int:
 
 
 
-@njit(parallel=True)
+@njit
 def _spectra(ch, z, alpha, force, ell, e, arm, clamped, psis, ws, Ks, tips, ss, coarse, ev, evc, scale) -> None:
-    """Per equilibrium ``k`` (in parallel over the cores): the tangent angles at the quadrature
+    """Per equilibrium ``k``: the tangent angles at the quadrature
     nodes, the second variation and its constraints (:func:`_assemble`), and the lowest
     eigenvalues on the admissible subspace (:func:`_project`) with rod i in its basis of
     ``N_i`` modes (``ev[k]``) and in the nested first ``coarse[i]`` of them (``evc[k]``);
@@ -281,7 +278,7 @@ def _spectra(ch, z, alpha, force, ell, e, arm, clamped, psis, ws, Ks, tips, ss, 
         f0 += psis[i].shape[0]
     for a in range(3):
         keep[pc - 3 + a] = p - 3 + a
-    for k in prange(n):
+    for k in range(n):
         theta = np.empty((3, nq))
         Q = np.empty((p, p))
         C = np.empty((m, p))
@@ -309,10 +306,6 @@ def _spectra(ch, z, alpha, force, ell, e, arm, clamped, psis, ws, Ks, tips, ss, 
         r = _project(Qc, Cc, B)
         e2 = np.linalg.eigvalsh(B[:pc - r, :pc - r].copy())
         evc[k, :] = e2[:pc - m]
-
-
-#: threads over the equilibria pay off from this many on (below, the kernel runs on one thread)
-PARALLEL_MIN = 8
 
 
 def _spectrum(system: System, X: NDArray, charts: NDArray, N: tuple[int, int, int], coarse: tuple[int, int, int]
@@ -345,15 +338,10 @@ def _spectrum(system: System, X: NDArray, charts: NDArray, N: tuple[int, int, in
     ev = np.empty((n, sum(N) + 3 - m))
     evc = np.empty((n, sum(coarse) + 3 - m))
     scale = np.empty(n)
-    threads = numba.get_num_threads()
-    numba.set_num_threads(threads if n >= PARALLEL_MIN else 1)
-    try:
-        _spectra(ch, z, np.ascontiguousarray(alpha, dtype=float), force, np.ascontiguousarray(ell, dtype=float),
-                 np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(arm), clamped,
-                 tuple(b.psi for b in bs), tuple(b.w for b in bs), tuple(b.K for b in bs), tuple(b.tip for b in bs),
-                 tuple(b.s for b in bs), np.array(coarse, dtype=np.int64), ev, evc, scale)
-    finally:
-        numba.set_num_threads(threads)
+    _spectra(ch, z, np.ascontiguousarray(alpha, dtype=float), force, np.ascontiguousarray(ell, dtype=float),
+             np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(arm), clamped,
+             tuple(b.psi for b in bs), tuple(b.w for b in bs), tuple(b.K for b in bs), tuple(b.tip for b in bs),
+             tuple(b.s for b in bs), np.array(coarse, dtype=np.int64), ev, evc, scale)
     return ev, scale, evc
 
 
