@@ -100,3 +100,26 @@ def test_snap_lands_on_the_level_set(code, par):
     assert np.max(np.abs(cross)) < 1e-12
     # the returned tips are the closed-form tips of the returned points
     assert np.allclose(tips[:, 0], t.x, atol=1e-12) and np.allclose(tips[:, 1], t.y, atol=1e-12)
+
+
+def _child_ik(theta: float) -> int:
+    import flexkin
+    from flexkin.mechanism import symmetric_mechanism
+
+    return len(flexkin.ik(symmetric_mechanism("revolute"), (0.05, 0.02, theta)))
+
+
+def test_fork_after_a_solve_is_safe(examples_dir):
+    """A fork-based process pool works after the parent solved (no threading runtime that aborts
+    on fork, such as GNU OpenMP behind numba's prange, may be started by the IK/stability kernels)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    import flexkin
+    from flexkin.mechanism import symmetric_mechanism
+
+    proto = flexkin.load_mechanism(examples_dir / "prototype_3pfr.toml")
+    assert len(flexkin.ik(proto, (0.0, 0.0, 0.5 * np.pi))) == 88  # many equilibria in one batch
+    n = len(flexkin.ik(symmetric_mechanism("revolute"), (0.05, 0.02, 0.349)))
+    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("fork")) as ex:
+        assert list(ex.map(_child_ik, [0.349])) == [n]
