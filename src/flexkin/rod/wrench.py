@@ -356,6 +356,14 @@ def wrench_mode(a: float, b: float, m0: float, tol: float) -> tuple[int, bool]:
     phie = inverse_f(F1 + lam, k2, kp2, K, phi1 + lam)
     lo = math.floor((phi1 - HALF_PI) / math.pi) + 1   # smallest j with pi/2 + j pi > phi1
     hi = math.ceil((phie - HALF_PI) / math.pi) - 1    # largest j with pi/2 + j pi < phie
+    # an inflection within tol of an end is at that end, not inside, whichever side rounding
+    # put it: a rod on the boundary between two d-modes carries the lower label (SPEC §2)
+    at_base = abs(math.cos(phi1)) < tol
+    at_tip = abs(math.cos(phie)) < tol
+    if at_base and lo == round((phi1 - HALF_PI) / math.pi):
+        lo += 1
+    if at_tip and hi == round((phie - HALF_PI) / math.pi):
+        hi -= 1
     mode = 1 + max(0, int(hi - lo + 1))
-    boundary = abs(math.cos(phi1)) < tol or abs(math.cos(phie)) < tol
+    boundary = at_base or at_tip
     return mode, boundary
