@@ -31,7 +31,7 @@ try:  # numba (a flexkin dependency) makes the per-rod loops fast; numpy fallbac
 except ImportError:  # pragma: no cover
     njit = None
 
-__all__ = ["ClampedChart", "chart", "rk4_rods", "steps_for"]
+__all__ = ["ClampedChart", "bucket_hits", "bucket_spans", "chart", "rk4_rods", "rk4_step", "steps_for"]
 
 _CACHE: dict = {}
 
@@ -194,16 +194,49 @@ def _rk4_canonical(ax, ay, mt, n_steps):
     changes = np.zeros(M, np.int64)
     last = np.sign(mt)
     for j in range(n_steps):
-        k1 = f(z)
-        k2 = f(z + 0.5 * h * k1)
-        k3 = f(z + 0.5 * h * k2)
-        k4 = f(z + h * k3)
-        z = z + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
+        z = rk4_step(f, z, h)
         if j < n_steps - 1:
             sg = np.sign(z[3])
             changes += (sg * last < 0)
             last = np.where(sg != 0, sg, last)
     return z, 1 + changes
+
+
+def rk4_step(f, z, h):
+    """One classical Runge-Kutta step of ``z' = f(z)`` (autonomous) with step ``h``."""
+    k1 = f(z)
+    k2 = f(z + 0.5 * h * k1)
+    k3 = f(z + 0.5 * h * k2)
+    k4 = f(z + h * k3)
+    return z + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+def bucket_spans(lo, hi, origin, h, cap, last):
+    """Buckets of size ``h`` (grid from ``origin``) overlapped by the boxes ``[lo, hi]`` (n, d):
+    boxes overlapping at most ``cap`` buckets (all if ``last``) ``fits``; for each (box,
+    bucket) pair, ``rep`` (box index among the fitting ones) and ``k`` (the bucket's running
+    number within its box, row-major over ``span``); ``blo``, ``bhi``, ``span`` per box."""
+    blo = np.floor((lo - origin) / h).astype(np.int64)
+    bhi = np.floor((hi - origin) / h).astype(np.int64)
+    span = bhi - blo + 1
+    cnt = np.prod(span, axis=1)
+    fits = np.ones(len(lo), bool) if last else cnt <= cap
+    sm = np.flatnonzero(fits)
+    c_sm = cnt[sm]
+    rep = np.repeat(sm, c_sm)
+    k = np.arange(len(rep)) - np.repeat(np.cumsum(c_sm) - c_sm, c_sm)
+    return fits, rep, k, blo, bhi, span
+
+
+def bucket_hits(qid, ok, bid, btri):
+    """Entries of sorted buckets: for query bucket ids ``qid`` (where ``ok``), every entry of
+    ``btri`` whose bucket id ``bid`` (sorted) equals it.  Returns (query index, entry)."""
+    s0 = np.searchsorted(bid, qid, "left")
+    s1 = np.searchsorted(bid, qid, "right")
+    cnt = np.where(ok, s1 - s0, 0)
+    qi = np.repeat(np.arange(len(qid)), cnt)
+    pos = np.arange(len(qi)) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(s0, cnt)
+    return qi, btri[pos]
 
 
 class ClampedChart:
@@ -280,16 +313,7 @@ class ClampedChart:
         todo = np.arange(len(self.tet))
         for lev in range(n_levels):
             h = bucket * 2.0**lev
-            blo = np.floor((lo[todo] - self.origin) / h).astype(np.int64)
-            bhi = np.floor((hi[todo] - self.origin) / h).astype(np.int64)
-            span = bhi - blo + 1
-            cnt = span[:, 0] * span[:, 1] * span[:, 2]
-            fits = (cnt <= cap) if lev < n_levels - 1 else np.ones(len(todo), bool)
-            sm = np.flatnonzero(fits)
-            c_sm = cnt[sm]
-            rep = np.repeat(sm, c_sm)
-            start = np.repeat(np.cumsum(c_sm) - c_sm, c_sm)
-            k = np.arange(len(rep)) - start
+            fits, rep, k, blo, _, span = bucket_spans(lo[todo], hi[todo], self.origin, h, cap, lev == n_levels - 1)
             sy, sz = span[rep, 1], span[rep, 2]
             n1 = int(np.ceil((hi[:, 1].max() - self.origin[1]) / h)) + 2
             n2 = int(np.ceil((hi[:, 2].max() - self.origin[2]) / h)) + 2
@@ -356,14 +380,9 @@ class ClampedChart:
         for h, n1, n2, bid, btri in self.levels:
             q = np.floor((Qs - self.origin) / h).astype(np.int64)
             ok = np.all(q >= 0, axis=1) & (q[:, 1] < n1) & (q[:, 2] < n2)
-            qid = (q[:, 0] * n1 + q[:, 1]) * n2 + q[:, 2]
-            s0 = np.searchsorted(bid, qid, "left")
-            s1 = np.searchsorted(bid, qid, "right")
-            cnt = np.where(ok, s1 - s0, 0)
-            qi = np.repeat(np.arange(len(Q)), cnt)
-            pos = np.arange(len(qi)) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(s0, cnt)
+            qi, tr = bucket_hits((q[:, 0] * n1 + q[:, 1]) * n2 + q[:, 2], ok, bid, btri)
             QI.append(qi)
-            TR.append(btri[pos])
+            TR.append(tr)
         qi, tr = np.concatenate(QI), np.concatenate(TR)
         if max_mode is not None:
             m = self.tet_mode[tr] <= max_mode + 1

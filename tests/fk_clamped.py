@@ -27,7 +27,7 @@ import numpy as np
 from clamped_chart import chart
 from ik_oracle import Geom, _dedupe_rows, _mode_ambiguous, _wrap, count_inflections, elastica_k, integrate_batch
 from leg_curves import TURN_MARGIN
-from ms_shooting import MSSystem, RodFK
+from ms_shooting import MSSystem, RodFK, solve_batch
 
 __all__ = ["fk_clamped", "pose_newton", "rods_at_poses"]
 
@@ -50,7 +50,7 @@ def _rod_newton(rod: RodFK, Xr, pose, n_iter=20, tol=1e-10, blow=5e3):
         ok[idx[done]] = True
         if it == n_iter:
             break
-        step = _solve(o["Jr"], -o["R"])
+        step = solve_batch(o["Jr"], -o["R"])
         good = np.all(np.isfinite(step), axis=1)
         step[~good] = 0.0
         Rd = np.hypot(Xr[idx, 0], Xr[idx, 1]) * fs
@@ -64,41 +64,13 @@ def _rod_newton(rod: RodFK, Xr, pose, n_iter=20, tol=1e-10, blow=5e3):
     return Xr, ok
 
 
-def _solve(J, r):
-    with np.errstate(all="ignore"):
-        try:
-            return np.linalg.solve(J, r[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            out = np.full(r.shape, np.nan)
-            for k in range(len(r)):
-                try:
-                    out[k] = np.linalg.solve(J[k], r[k])
-                except np.linalg.LinAlgError:
-                    pass
-            return out
-
-
 def _rod_state(rod: RodFK, Xr, pose):
     """Wrench W (M, 3), its total derivative w.r.t. the pose with the rod following (M, 3, 3),
     dXr/dpose (M, nr, 3) and the evaluation dict."""
     o = rod.eval(Xr, pose)
     W, dWx, dWp = rod.wrench(Xr, o)
-    dX = -_solve3(o["Jr"], o["Jp"])
+    dX = -solve_batch(o["Jr"], o["Jp"])
     return W, dWp + np.einsum("nkr,nrp->nkp", dWx, dX), dX, o
-
-
-def _solve3(J, B):
-    with np.errstate(all="ignore"):
-        try:
-            return np.linalg.solve(J, B)
-        except np.linalg.LinAlgError:
-            out = np.full(B.shape, np.nan)
-            for k in range(len(B)):
-                try:
-                    out[k] = np.linalg.solve(J[k], B[k])
-                except np.linalg.LinAlgError:
-                    pass
-            return out
 
 
 def _in_box(rod: RodFK, o, Xr, R_max, max_mode, max_turn):
@@ -268,7 +240,7 @@ def pose_newton(rods, Xr, pose, target, n_iter=20, tol=1e-9, max_step=(0.1, 0.1,
         alive[idx[done]] = False
         if it == n_iter:
             break
-        step = _solve(Js[0] + Js[1] + Js[2], -F)
+        step = solve_batch(Js[0] + Js[1] + Js[2], -F)
         ok = np.all(np.isfinite(step), axis=1)
         for dX in dXs:
             ok &= np.all(np.isfinite(dX).reshape(len(idx), -1), axis=1)
@@ -323,7 +295,7 @@ def _starts(rods, per_rod, poses, target, s_max, h, max_starts, info, chunk=1_00
     for Jx, sel in _combos(cnts, npz, chunk):
         F = states[0][2][sel[0]] + states[1][2][sel[1]] + states[2][2][sel[2]] - target
         Jt = states[0][3][sel[0]] + states[1][3][sel[1]] + states[2][3][sel[2]]
-        dp = _solve(Jt, -F)
+        dp = solve_batch(Jt, -F)
         sc = np.max(np.abs(dp) / h, axis=1)
         kp = np.flatnonzero(np.isfinite(sc) & (sc <= s_max))
         if not len(kp):

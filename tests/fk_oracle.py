@@ -77,6 +77,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from clamped_chart import bucket_hits, bucket_spans, rk4_step
 from ik_oracle import (
     Geom,
     _rk4_unit,
@@ -1119,11 +1120,7 @@ def _chart_points(lam, t, n_steps=256):
             return np.stack([np.cos(z[2]), np.sin(z[2]), z[3], a * np.sin(z[2])])
 
         for _ in range(n_steps):
-            k1 = f(z)
-            k2 = f(z + 0.5 * h * k1)
-            k3 = f(z + 0.5 * h * k2)
-            k4 = f(z + h * k3)
-            z = z + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
+            z = rk4_step(f, z, h)
         return z
 
     zc = depart(np.where(second | (n > 0), Q, 0.0))
@@ -1212,16 +1209,7 @@ class _Sheet:
         todo = np.arange(len(tri))
         for lev in range(n_levels):
             h = bucket * ratio**lev
-            blo = np.floor((lo[todo] - self.origin) / h).astype(np.int64)
-            bhi = np.floor((hi[todo] - self.origin) / h).astype(np.int64)
-            span = bhi - blo + 1
-            cnt = span[:, 0] * span[:, 1]
-            fits = (cnt <= cap) if lev < n_levels - 1 else np.ones(len(todo), bool)
-            sm = np.flatnonzero(fits)
-            c_sm = cnt[sm]
-            rep = np.repeat(sm, c_sm)
-            start = np.repeat(np.cumsum(c_sm) - c_sm, c_sm)
-            k = np.arange(len(rep)) - start
+            fits, rep, k, blo, bhi, span = bucket_spans(lo[todo], hi[todo], self.origin, h, cap, lev == n_levels - 1)
             sy = span[rep, 1]
             nby = int(bhi[:, 1].max()) + 2 if len(bhi) else 1
             bid = (blo[rep, 0] + k // sy) * nby + blo[rep, 1] + k % sy
@@ -1237,15 +1225,10 @@ class _Sheet:
         QI, TR = [], []
         for h, nby, bid, btri in self.levels:
             q = np.floor((Q - self.origin) / h).astype(np.int64)
-            qid = q[:, 0] * nby + q[:, 1]
             ok = (q[:, 0] >= 0) & (q[:, 1] >= 0) & (q[:, 1] < nby)
-            s0 = np.searchsorted(bid, qid, "left")
-            s1 = np.searchsorted(bid, qid, "right")
-            cnt = np.where(ok, s1 - s0, 0)
-            qi = np.repeat(np.arange(len(Q)), cnt)
-            pos = np.arange(len(qi)) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(s0, cnt)
+            qi, tr = bucket_hits(q[:, 0] * nby + q[:, 1], ok, bid, btri)
             QI.append(qi)
-            TR.append(btri[pos])
+            TR.append(tr)
         qi, tr = np.concatenate(QI), np.concatenate(TR)
         V = self.P[self.tri[tr]]
         e1, e2 = V[:, 1] - V[:, 0], V[:, 2] - V[:, 0]

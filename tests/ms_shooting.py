@@ -32,7 +32,7 @@ import numpy as np
 from clamped_chart import rk4_rods, steps_for
 from ik_oracle import Geom, _wrap, integrate_batch
 
-__all__ = ["LegMS", "MSSystem", "RodFK", "rod_block"]
+__all__ = ["LegMS", "MSSystem", "RodFK", "rod_block", "solve_batch"]
 
 
 def _segments(g: Geom, i, K, Xr, A, al, L, n_min, per_lambda, var, tight=False):
@@ -471,7 +471,7 @@ class MSSystem:
             R, J, *_ = self.eval(X[idx])
             rn = np.max(np.abs(R), axis=1)
             done = rn < tol
-            step = _solve(J, -R)
+            step = solve_batch(J, -R)
             bad = ~np.all(np.isfinite(step), axis=1)
             step[bad] = 0.0
             lim = np.max(np.abs(step[:, 3 * self.nr:]), axis=1) / 0.3
@@ -517,22 +517,25 @@ class MSSystem:
             if not idx.size:
                 break
             J = fine.eval(X[idx])[1]
-            step = _solve(J, -R)
+            step = solve_batch(J, -R)
             fin = np.all(np.isfinite(step), axis=1)
             X[idx[fin]] += step[fin]
             active[idx[~fin]] = False
         return best, best_r
 
 
-def _solve(J, r):
+def solve_batch(J, B):
+    """Batched ``J x = B`` for ``B`` (M, n) or (M, n, k); a singular system gives NaN."""
+    vec = B.ndim == J.ndim - 1
+    Bm = B[..., None] if vec else B
     with np.errstate(all="ignore"):
         try:
-            return np.linalg.solve(J, r[..., None])[..., 0]
+            X = np.linalg.solve(J, Bm)
         except np.linalg.LinAlgError:
-            out = np.empty_like(r)
-            for k in range(len(r)):
+            X = np.full(Bm.shape, np.nan)
+            for k in range(len(Bm)):
                 try:
-                    out[k] = np.linalg.solve(J[k], r[k])
+                    X[k] = np.linalg.solve(J[k], Bm[k])
                 except np.linalg.LinAlgError:
-                    out[k] = np.nan
-            return out
+                    pass
+    return X[..., 0] if vec else X

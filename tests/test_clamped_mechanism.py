@@ -65,7 +65,7 @@ def oracle_ik(name: str):
     return O.oracle_ik(m, CASES[name][1], load=m.load, **ORACLE_QUICK)
 
 
-def shoot(rod, n_eval: int = 2):
+def shoot(rod):
     """Integrate the rod from its clamp (x, y, theta, m) with its tip force and base moment."""
     f = np.asarray(rod.tip_force, float)
 
@@ -73,7 +73,8 @@ def shoot(rod, n_eval: int = 2):
         return [math.cos(y[2]), math.sin(y[2]), y[3] / rod.EI, f[0] * math.sin(y[2]) - f[1] * math.cos(y[2])]
 
     y0 = [rod.clamp[0], rod.clamp[1], rod.clamp_angle, rod.base_moment]
-    sol = solve_ivp(rhs, (0.0, rod.length), y0, method="DOP853", rtol=1e-12, atol=1e-13 * max(1.0, abs(rod.base_moment)))
+    sol = solve_ivp(rhs, (0.0, rod.length), y0, method="DOP853", rtol=1e-12,
+                    atol=1e-13 * max(1.0, abs(rod.base_moment)))
     return sol.y[:, -1]
 
 
