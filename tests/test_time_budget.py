@@ -44,3 +44,23 @@ def test_path_and_workspace_time_budget(rfr):
 def test_bad_budget(rfr, bad):
     with pytest.raises(ValueError, match="time_budget"):
         flexkin.ik(rfr, (0, 0, 0), time_budget=bad)
+
+
+def test_cli_fk_time_budget(examples_dir, capsys):
+    """``flexkin fk --time-budget`` reaches flexkin.fk: a budget far below the search's needs ends
+    early with ``complete = false`` in the JSON, and the solutions it lists are still refined."""
+    import json
+
+    from flexkin.cli import main
+
+    path = examples_dir / "unit_3rfr.toml"
+    u = np.degrees(flexkin.ik(flexkin.load_mechanism(path), (0.05, 0.02, np.radians(20))).solutions[0].inputs)
+    t = time.perf_counter()
+    code = main(["fk", str(path), "--inputs", *map(str, u), "--time-budget", "0.2", "--json"])
+    out = capsys.readouterr().out
+    assert code == 0 and time.perf_counter() - t < 10.0
+    d = json.loads(out)
+    assert d["complete"] is False and "time budget" in d["message"]
+    # a bad budget is a usage error naming the option
+    assert main(["fk", str(path), "--inputs", *map(str, u), "--time-budget", "0"]) == 2
+    assert "--time-budget" in capsys.readouterr().err

@@ -303,3 +303,21 @@ def test_verify_cost_reports():
     assert out["solutions"] >= 80 and out["unverified"] == 0
     assert out["verify_s"] > 0 and out["per_solution_ms"] > 0
     assert RTOL <= 1e-12
+
+
+def test_fk_condition_is_the_fk_matrix():
+    """An FK solution reports the condition of the FK Newton matrix (inputs held), an IK solution
+    that of the IK matrix (pose held): the same equilibrium found both ways gives both."""
+    mech, res = _solve("ik", "revolute", (0.05, -0.02, 10 * DEG))
+    system = System.from_mechanism(mech)
+    s = res.solutions[0]
+    fk = flexkin.fk(mech, s.inputs, res.load)
+    same = [f for f in fk.solutions if np.allclose(f.pose, s.pose, atol=1e-8)]
+    assert len(same) == 1
+    f = same[0]
+    X, ch, load = np.array([f.x]), np.array([f.charts]), np.asarray(res.load)
+    c_fk = newton_condition(system, X, ch, load, "inputs")[0]
+    c_ik = newton_condition(system, X, ch, load, "pose")[0]
+    assert f.condition == pytest.approx(c_fk, rel=1e-6)
+    assert s.condition == pytest.approx(c_ik, rel=1e-3)
+    assert abs(c_fk / c_ik - 1.0) > 1e-3  # the two matrices differ, so the test can tell them apart

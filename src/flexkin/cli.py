@@ -123,6 +123,9 @@ def _build_parser() -> argparse.ArgumentParser:
         else:
             k.add_argument("--inputs", nargs=3, type=_finite("--inputs"), metavar=("U1", "U2", "U3"), required=True,
                            help="actuator inputs: m for prismatic and length legs, deg for revolute legs")
+            k.add_argument("--time-budget", type=_positive("--time-budget"), metavar="SECONDS",
+                           help="stop the global search early enough to finish in about SECONDS; the result then "
+                                "says complete = false (default: no limit)")
         _add_common_kinematics(k, name)
         k.add_argument("--json", action="store_true", help="print the SPEC §4 JSON object")
         k.add_argument("--feasibility", action="store_true",
@@ -535,7 +538,7 @@ def _kinematics(a, mech):
         warnings.warn(note, FlexkinWarning, stacklevel=2)
     u = [float(leg.from_display(v)) for v, leg in zip(a.inputs, mech.legs)]
     with Ticker("flexkin fk: searching all equilibria", enabled=_progress(a)):
-        res = fk(mech, u, load=a.load, max_mode=a.max_mode)
+        res = fk(mech, u, load=a.load, max_mode=a.max_mode, time_budget=getattr(a, "time_budget", None))
     units = [leg.input_unit for leg in mech.legs]
     what = "forward kinematics at inputs (" + ", ".join(f"{v:g} {un}" for v, un in zip(a.inputs, units)) + ")"
     return res, what

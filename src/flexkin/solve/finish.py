@@ -158,8 +158,9 @@ def distinct(system: System, X: NDArray, charts: NDArray, residual: NDArray,
 
 
 def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual: NDArray, max_mode: int,
-                     load: NDArray, diag: dict[str, Any] | None = None) -> list[Solution]:
-    """Reported solutions from refined candidates (module docstring)."""
+                     load: NDArray, diag: dict[str, Any] | None = None, fixed: str = "pose") -> list[Solution]:
+    """Reported solutions from refined candidates (module docstring); ``fixed`` is what the
+    analysis held (``"pose"`` for IK, ``"inputs"`` for FK): its Newton matrix gives ``condition``."""
     X = canonical(system, X)
     modes = rod_modes(system, X, charts)
     ok = np.all(modes <= max_mode, axis=1) & np.all(np.isfinite(X), axis=1)
@@ -168,7 +169,7 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
     if len(X) == 0:
         return []
     idx = distinct(system, X, charts, residual, diag)
-    sols = build_solutions(system, mech, X[idx], charts[idx], load, residual[idx], modes[idx])
+    sols = build_solutions(system, mech, X[idx], charts[idx], load, residual[idx], modes[idx], fixed)
     escale = system.F_ref * system.L_ref
     sols.sort(key=lambda s: (s.modes, round(s.energy / escale, 9), tuple(s.inputs), tuple(s.pose)))
     return [_with_id(s, k + 1) for k, s in enumerate(sols)]

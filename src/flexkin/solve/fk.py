@@ -95,7 +95,8 @@ def refine_fk(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, 
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
-    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag)
+    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
+                            "inputs")
 
 
 def _assembly_obstruction(m: System, u: NDArray) -> str:
