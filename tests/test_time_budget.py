@@ -48,7 +48,7 @@ def test_bad_budget(rfr, bad):
 
 def test_cli_fk_time_budget(examples_dir, capsys):
     """``flexkin fk --time-budget`` reaches flexkin.fk: a budget far below the search's needs ends
-    early with ``complete = false`` in the JSON, and the solutions it lists are still refined."""
+    early with ``complete = false`` in the JSON; a budget of 0 is a usage error naming the option."""
     import json
 
     from flexkin.cli import main
