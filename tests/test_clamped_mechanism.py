@@ -9,7 +9,8 @@
 * completeness of the IK of a symmetric (``examples/unit_3pff.toml``) and an asymmetric mixed
   pinned/clamped mechanism (``examples/mixed_clamped.toml``) against the independent
   multi-start oracle (``tests/ik_oracle.py`` with ``leg_curves``), whose every solution flexkin
-  must list; FK round trips and FK against ``fk_oracle`` (slow);
+  must list; FK against the oracle ``fk_oracle.fk_multistart`` at several inputs of both
+  mechanisms (round trip included), a nearly taut one among them;
 * stability of the clamped mechanisms' equilibria against the discretised-energy oracle
   (``tests/stability_oracle.py``);
 * the JSON of pinned mechanisms: SPEC §4 keys, ``tip_moment`` exactly 0.
@@ -242,22 +243,71 @@ def test_stability_against_the_oracle(name):
 # ======================================================================================
 # 4. FK
 # ======================================================================================
-@pytest.mark.slow
-@pytest.mark.parametrize("name", list(CASES))
-def test_fk_round_trip(name):
-    """FK at the inputs of the IK solutions whose rods are least loaded finds their poses, or
-    says that its search was incomplete."""
+#: the FK oracle's quick configuration (rods turning by at most pi, pose grid 0.1 L x 15 deg)
+FK_ORACLE_QUICK = dict(max_mode=2, max_turn=math.pi, clamped_grid=(0.1, 24), n_random=0)
+#: inputs of the IK solutions (CASES' poses, sorted by their largest tip force) whose FK is
+#: compared: the default run and the slow study
+FK_PICKS = {"sym": (0, 10), "mixed": (0, 3)}
+FK_PICKS_SLOW = {"sym": (3, 30, 60, 100), "mixed": (8, 15, 22)}
+
+
+def _fk_inputs(name: str, pick: int) -> tuple[float, ...]:
+    sols = sorted(flex_ik(name).solutions, key=lambda t: max(math.hypot(*r.tip_force) for r in t.rods))
+    return sols[pick].inputs
+
+
+def _fk_against_the_oracle(name: str, pick: int) -> None:
+    """flexkin's FK at the inputs of one IK solution: complete, finds the IK pose again (round
+    trip), lists every solution of the independent multi-start oracle (same pose and tip forces)
+    and every rod it returns matches the ODE shot from its clamp."""
+    import fk_oracle as FO
+
     m = mech(name)
-    pose = np.asarray(CASES[name][1])
-    s = min(flex_ik(name).solutions, key=lambda t: max(math.hypot(*r.tip_force) for r in t.rods))
-    res = flexkin.fk(m, s.inputs, time_budget=120.0)
-    found = any(np.allclose(f.pose, pose, atol=1e-7) for f in res.solutions)
-    record(f"FK round trip {name}", f"{len(res.solutions)} poses, found {found}, complete {res.complete}, "
-           f"{res.elapsed:.1f} s")
-    assert found or (not res.complete and "incomplete" in res.message)
+    u = _fk_inputs(name, pick)
+    res = flexkin.fk(m, u)
+    orc = FO.fk_multistart(m, u, m.load, **FK_ORACLE_QUICK)
+    scale = max(1.0, max(float(np.max(np.abs(o.forces))) for o in orc)) if orc else 1.0
+
+    def same(f, o) -> bool:
+        return FO.pose_match(f.pose, o.pose, 1e-6, 1e-6) and \
+            np.max(np.abs(np.array([r.tip_force for r in f.rods]) - o.forces)) <= 1e-5 * scale
+
+    missed = [o for o in orc if not any(same(f, o) for f in res.solutions)]
+    back = any(np.allclose(f.pose, CASES[name][1], atol=1e-7) for f in res.solutions)
+    record(f"FK against the oracle {name} #{pick}", f"flexkin {len(res.solutions)} in {res.elapsed:.1f} s "
+           f"(lattice h {res.diagnostics.lattice_h:.3g} m x {res.diagnostics.lattice_n_theta}), oracle {len(orc)}, "
+           f"missed {len(missed)}, round trip {back}")
+    assert res.complete and res.diagnostics.lattice_h > 0
+    assert back, "the IK pose is not among the FK solutions"
+    assert not missed, [(np.round(o.pose, 6), [r.R_dimless for r in o.rods]) for o in missed]
     for f in res.solutions:
         for rod in f.rods:
             assert max(ode_errors(rod)) < ode_tol(rod)
+
+
+@pytest.mark.parametrize("name, pick", [(n, p) for n, ps in FK_PICKS.items() for p in ps])
+def test_fk_complete_against_the_oracle(name, pick):
+    """The default picks, where the oracle finds at least one solution besides the round trip."""
+    _fk_against_the_oracle(name, pick)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, pick", [(n, p) for n, ps in FK_PICKS_SLOW.items() for p in ps])
+def test_fk_complete_against_the_oracle_more_inputs(name, pick):
+    """The same at more inputs, among them taut rods (1 % from straight) near the reach boundary."""
+    _fk_against_the_oracle(name, pick)
+
+
+def test_fk_of_a_nearly_taut_mechanism():
+    """The unit 3-PF at the inputs of its IK solution at the centre (rods 99 % extended: a reach
+    region of a few cm x 0.5 rad): the lattice adapts to it and the one equilibrium the
+    oracle knows is found, C3-symmetric like the inputs."""
+    m = mech("sym")
+    ik = flexkin.ik(m, (0.0, 0.0, 0.0))
+    s = min(ik.solutions, key=lambda t: max(math.hypot(*r.tip_force) for r in t.rods))
+    res = flexkin.fk(m, s.inputs)
+    assert res.complete and res.diagnostics.lattice_h < 0.02 * max(leg.rod.length for leg in m.legs)
+    assert any(np.allclose(f.pose, (0.0, 0.0, 0.0), atol=1e-7) for f in res.solutions)
 
 
 # ======================================================================================

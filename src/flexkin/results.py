@@ -225,14 +225,19 @@ class IKDiagnostics:
 
 @dataclass(frozen=True)
 class FKDiagnostics:
-    """What the forward kinematics did: starting points from the branch-and-bound, Newton
-    convergences, whether the search completed, node triples examined, singular continuum."""
+    """What the forward kinematics did: starting points from the global search, Newton
+    convergences, whether the search completed, node triples (branch-and-bound, all legs
+    pinned) or rod combinations (pose lattice, any leg clamped) examined, singular continuum,
+    and the pose lattice's spacing (``lattice_h`` in m and ``lattice_n_theta`` orientations per
+    turn; 0 for the branch-and-bound)."""
 
     candidates: int = 0
     converged: int = 0
     search_complete: bool = True
     nodes: int = 0
     continuum: int = 0
+    lattice_h: float = 0.0
+    lattice_n_theta: int = 0
 
 
 @dataclass(frozen=True)

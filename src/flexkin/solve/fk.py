@@ -2,9 +2,12 @@
 
 With the inputs fixed every clamp is known, and the unknowns are the rods' chart coordinates
 and the pose (paper: rigid-body closure Eq. 17 plus equilibrium Eq. 15).  Instead of the
-paper's sampled global optimisation, a compiled branch-and-bound over the product of the three
-rods' atlases (:mod:`flexkin.solve.fk_search`) finds every solution region; its starts are
-refined by the batched Newton corrector on the whole equation system with the inputs held.
+paper's sampled global optimisation, a global search finds every solution region: with all legs
+pinned a compiled branch-and-bound over the product of the three rods' atlases
+(:mod:`flexkin.solve.fk_search`); with any leg clamped (paper §8: three unknowns per rod,
+where interval bounds exclude too little) the legs' rods on a pose lattice
+(:mod:`flexkin.solve.fk_lattice`).  The starts are refined by the batched Newton corrector on
+the whole equation system with the inputs held.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from ..results import FKDiagnostics, KinematicsResult, Solution
 from ..system import System
 from .corrector import newton
 from .finish import finish_solutions
+from .fk_lattice import lattice_starts
 from .fk_search import MAX_NODES, fk_starts
 from .ik import RESIDUAL_TOL, as_load
 
@@ -69,7 +73,12 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     if msg:
         return KinematicsResult((), True, msg, time.perf_counter() - t0, FKDiagnostics(), "fk", mech, given, wl,
                                 max_mode)
-    X, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=deadline)
+    if np.any(system.clamped):  # 9-D interval bounds exclude too little: the pose lattice
+        X, complete, stats = lattice_starts(system, u, w, max_mode, deadline=deadline)
+        nodes = stats.combinations
+        diag["lattice_h"], diag["lattice_n_theta"] = stats.h, stats.n_theta
+    else:
+        X, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=deadline)
     diag["candidates"] = int(len(X))
     diag["search_complete"] = complete
     diag["nodes"] = int(nodes)
@@ -79,7 +88,7 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
                "the least loaded one is reported")
     if not complete:
-        why = ("time budget exhausted" if time_budget is not None and nodes < MAX_NODES
+        why = ("time budget exhausted" if time_budget is not None and (nodes < MAX_NODES or "lattice_h" in diag)
                else f"search budget exhausted ({nodes} node triples examined)")
         msg = f"{why}: the global search did not finish, the solution list may be incomplete" + \
             ("" if sols else "; " + msg)
