@@ -12,6 +12,7 @@ import shutil
 import time
 import tomllib
 
+import numpy as np
 import pytest
 
 from flexkin.mechanism import mechanism_from_dict
@@ -168,7 +169,8 @@ def test_grid_keys_change_what_they_say():
     assert m.load == (0.0, -0.5, 0.01)
     m = build({"scale": 3.0})
     assert m.platform.b == pytest.approx(3.0 * mech.platform.b)
-    assert [leg.origin for leg in m.legs] == pytest.approx([tuple(3.0 * c for c in leg.origin) for leg in mech.legs])
+    np.testing.assert_allclose([leg.origin for leg in m.legs], 3.0 * np.array([leg.origin for leg in mech.legs]),
+                               rtol=1e-12)
     assert [leg.rod.length for leg in m.legs] == [3.0] * 3 and [leg.rod.EI for leg in m.legs] == [1.0] * 3
     # the original dict is untouched
     assert data == tomllib.loads((EXAMPLES / "unit_3rfr.toml").read_text())
