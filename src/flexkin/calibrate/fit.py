@@ -415,7 +415,7 @@ def calibrate(mech: Mechanism | str | os.PathLike[str], data: Measurements | str
             z_after=None if ra is None else tuple(float(v) for v in ra / row.sigma),
             loo=None if k not in loo_err else _display(row, m0, loo_err[k]),
             outlier=not bool(active[k]), reason=reasons[k] if not active[k] else "", note=mt.note,
-            stable_after=stab_final.get(k), units=units))  # type: ignore[arg-type]
+            stable_after=stab_final.get(k), units=units, sigma=_display(row, m0, row.sigma)))  # type: ignore[arg-type]
     out_rows_t = tuple(out_rows)
     complete = res is not None and int(res.status) > 0
     msgs = []

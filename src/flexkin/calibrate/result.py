@@ -85,6 +85,7 @@ class RowFit:
     note: str = ""
     stable_after: bool | None = None
     units: tuple[str, str, str] = ("m", "m", "deg")
+    sigma: tuple[float, float, float] | None = None
 
     def error_summary(self, which: str = "after") -> tuple[float, float] | None:
         """FK rows: (position error in m, angle error in deg); IK rows: (largest input error,
@@ -106,7 +107,8 @@ class RowFit:
                 "predicted_before": tup(self.predicted_before), "predicted_after": tup(self.predicted_after),
                 "residual_before": tup(self.residual_before), "residual_after": tup(self.residual_after),
                 "z_before": tup(self.z_before), "z_after": tup(self.z_after), "loo_error": tup(self.loo),
-                "outlier": self.outlier, "reason": self.reason, "note": self.note, "stable_after": self.stable_after}
+                "outlier": self.outlier, "reason": self.reason, "note": self.note, "stable_after": self.stable_after,
+                "sigma": tup(self.sigma)}
 
 
 @dataclass(frozen=True)
