@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -117,6 +118,20 @@ def _pred_of(row: Row, sol) -> NDArray[np.float64]:
     return np.array(sol.pose if row.fixed == "inputs" else sol.inputs, dtype=float)
 
 
+@lru_cache(maxsize=256)
+def _all_equilibria(mech: Mechanism, fixed: str, held: tuple, load: tuple, max_mode: int):
+    """Every equilibrium of a row at the starting parameters (IK or FK), or the ValueError that
+    made it impossible; memoized (results are immutable), so refitting the same data with
+    other keys or other noise does not repeat the global searches."""
+    from ..solve.fk import fk
+    from ..solve.ik import ik
+
+    try:
+        return (fk if fixed == "inputs" else ik)(mech, np.array(held), np.array(load), max_mode)
+    except ValueError as exc:  # e.g. a length leg's free length <= 0
+        return exc
+
+
 def match_rows(mech: Mechanism, rows: list[Row], max_mode: int = 2) -> list[Match]:
     """Match every row to one branch at the starting parameters (see the module docstring).
 
@@ -132,19 +147,10 @@ def match_rows(mech: Mechanism, rows: list[Row], max_mode: int = 2) -> list[Matc
     -------
     list of Match
     """
-    from ..solve.fk import fk
-    from ..solve.ik import ik
-
-    cache: dict[tuple, object] = {}
     out = []
     for row in rows:
-        key = (row.fixed, tuple(np.round(row.held, 15)), tuple(row.load))
-        if key not in cache:
-            try:
-                cache[key] = (fk if row.fixed == "inputs" else ik)(mech, row.held, row.load, max_mode)
-            except ValueError as exc:  # e.g. a length leg's free length <= 0
-                cache[key] = exc
-        res = cache[key]
+        res = _all_equilibria(mech, row.fixed, tuple(float(v) for v in row.held), tuple(float(v) for v in row.load),
+                              int(max_mode))
         if isinstance(res, ValueError):
             out.append(Match(False, f"unreachable: {res}"))
             continue
