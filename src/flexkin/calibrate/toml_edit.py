@@ -26,10 +26,7 @@ _HEADER = re.compile(r"^\s*(\[\[?)\s*([A-Za-z0-9_.\-\"' ]+?)\s*(\]\]?)\s*(#.*)?$
 
 
 def _num(v: float) -> str:
-    s = f"{v:.10g}"
-    if "e" not in s and "." not in s and "inf" not in s and "nan" not in s:
-        s += ".0"
-    return s
+    return repr(float(v))  # the shortest text that reads back as the same double
 
 
 def _fmt(v: Any) -> str:
