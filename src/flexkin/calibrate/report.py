@@ -103,9 +103,9 @@ def markdown(res, figure: str | None = None, command: str = "") -> str:
         ci = "–" if p.ci95 is None else f"[{fmt_value(p.ci95[0], p.unit)}, {fmt_value(p.ci95[1], p.unit)}]"
         md.append(f"| `{p.key}` | {fmt_value(p.initial, p.unit)} | {fmt_value(p.value, p.unit)} | "
                   f"{fmt_value(p.stderr, p.unit) if p.stderr is not None else 'not identified'} | {ci} |")
-    sig = "the sigmas as given" if res.absolute_sigma else "scaled by the residual scale " + (
+    sig = "from the sigmas as given" if res.absolute_sigma else "scaled by the residual scale " + (
         f"{res.scale:.3g}" if math.isfinite(res.scale) else "(none: no degrees of freedom)")
-    md += ["", f"χ² = {res.chi2:.4g} on {res.dof} degrees of freedom; standard errors with {sig}.", ""]
+    md += ["", f"χ² = {res.chi2:.4g} on {res.dof} degrees of freedom; standard errors {sig}.", ""]
     sv = ", ".join(f"{v:.3g}" for v in res.singular_values)
     md.append(f"**Identifiability.** Singular values of the parameter Jacobian scaled by typical changes "
               f"(relative to the largest): {sv}.")
