@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 
 import flexkin
-from flexkin.calibrate import FitKeyError, calibrate
-from flexkin.calibrate.engine import Model, match_rows, prepare_rows
-from flexkin.calibrate.params import parse_fit_keys, values_of
+from flexkin.calibration import FitKeyError, calibrate
+from flexkin.calibration.engine import Model, match_rows, prepare_rows
+from flexkin.calibration.params import parse_fit_keys, values_of
 from flexkin.cli import main
 from flexkin.io.measurements import MeasurementError, measurements_from_rows, parse_measurements
 
@@ -135,7 +135,7 @@ def test_parameter_jacobian_matches_central_differences(examples_dir, name, keys
     theta0 = values_of(mech, params)
     rows = prepare_rows(mech, meas.rows)
     # both rows start from the same equilibrium (an IK solution is an FK solution of its inputs)
-    from flexkin.calibrate.engine import Match
+    from flexkin.calibration.engine import Match
     m = Match(True, "", sol.id, sol.mode_label, sol.x.copy(), np.array(sol.charts), True, 1, 0.0)
     model = Model(mech, params, theta0, rows, [m, m])
     worst = 0.0
@@ -351,7 +351,7 @@ def test_cli_calibrate_bad_input(examples_dir, capsys, args, expect):
 
 
 def test_calibrated_toml_keeps_comments_and_edits_arrays(examples_dir, tmp_path):
-    from flexkin.calibrate.toml_edit import calibrated_toml
+    from flexkin.calibration.toml_edit import calibrated_toml
 
     text = (examples_dir / "prototype_3pfr.toml").read_text()
     raw = tomllib.loads(text)

@@ -43,8 +43,8 @@ _LAZY = {
     "Solution": ("flexkin.results", "Solution"),
     "PathResult": ("flexkin.solve.path", "PathResult"),
     "Workspace": ("flexkin.solve.workspace", "Workspace"),
-    "calibrate": ("flexkin.calibrate.fit", "calibrate"),
-    "CalibrationResult": ("flexkin.calibrate.result", "CalibrationResult"),
+    "calibrate": ("flexkin.calibration.fit", "calibrate"),
+    "CalibrationResult": ("flexkin.calibration.result", "CalibrationResult"),
 }
 
 

@@ -219,7 +219,7 @@ def _build_parser() -> argparse.ArgumentParser:
     from .study.cli import add_study_parser
 
     add_study_parser(sub)
-    from .calibrate.cli import add_calibrate_parser
+    from .calibration.cli import add_calibrate_parser
 
     add_calibrate_parser(sub)
     add_explore_parser(sub)
@@ -345,7 +345,7 @@ def _cmd_explore(a) -> int:
 
 
 def _cmd_calibrate(a) -> int:
-    from .calibrate.cli import run_calibrate_command
+    from .calibration.cli import run_calibrate_command
 
     return run_calibrate_command(a)
 

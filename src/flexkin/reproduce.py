@@ -18,7 +18,7 @@ every figure embedded as base64; the tables' CSV files are linked), PNG figures 
 9. calibrating the prototype on the measured columns of Tables 1 and 2
    (``examples/prototype_measurements.csv``): the three input offsets, then the offsets and E,
    with residuals before and after, leave-one-out errors and what five rows can identify
-   (:mod:`flexkin.calibrate`).
+   (:mod:`flexkin.calibration`).
 
 Numbers are printed to the precision that means something: positions to 0.1 µm (a computed
 2e-14 m is 0), actuator strokes to 0.1 mm, angles to 0.01°.
@@ -320,8 +320,8 @@ def _cosserat_section(proto, fk_result, table1, table2) -> list[str]:
 # ---- calibration (issue 28) ----------------------------------------------------------------
 def _calibration_section(out: Path, figs: list[Path]) -> list[str]:
     """Section 9: the prototype calibrated on the measured columns of Tables 1 and 2."""
-    from .calibrate import calibrate
-    from .calibrate.report import markdown
+    from .calibration import calibrate
+    from .calibration.report import markdown
 
     ex = _examples_dir()
     mech, data = ex / "prototype_3pfr.toml", ex / "prototype_measurements.csv"

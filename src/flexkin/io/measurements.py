@@ -15,7 +15,7 @@ parameters the row belongs to; default: the stable one nearest to the measuremen
 default.
 
 Values stay in display units here (this module sits below the mechanism layer and does not know
-which legs are revolute); :mod:`flexkin.calibrate` converts them once.  Every problem raises
+which legs are revolute); :mod:`flexkin.calibration` converts them once.  Every problem raises
 :class:`MeasurementError` with one line ``"<file>: row N (line L): <column>: <problem>"``.
 """
 

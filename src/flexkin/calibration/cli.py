@@ -3,7 +3,7 @@
 
 Wiring into flexkin's command line (``flexkin/cli.py``), as ``flexkin study``::
 
-    from .calibrate.cli import add_calibrate_parser, run_calibrate_command
+    from .calibration.cli import add_calibrate_parser, run_calibrate_command
     add_calibrate_parser(sub)
     handler = {..., "calibrate": run_calibrate_command}[a.command]
 

@@ -3,14 +3,14 @@
 Method (``docs/calibration.md``):
 
 1. every row is matched to one stable equilibrium at the starting parameters
-   (:func:`~flexkin.calibrate.engine.match_rows`); rows no stable branch reaches are outliers
+   (:func:`~flexkin.calibration.engine.match_rows`); rows no stable branch reaches are outliers
    with their reason;
 2. the weighted residuals ``(predicted - measured) / sigma`` of the matched rows are minimised
    by :func:`scipy.optimize.least_squares` (trust-region reflective, bounds: lengths and
    stiffnesses stay above 1e-3 of their start; optional robust loss) over the parameters
    scaled by typical changes; the predictions follow each row's branch by continuation
-   (:class:`~flexkin.calibrate.engine.Model`) and the Jacobian is analytic
-   (:mod:`~flexkin.calibrate.sensitivity`);
+   (:class:`~flexkin.calibration.engine.Model`) and the Jacobian is analytic
+   (:mod:`~flexkin.calibration.sensitivity`);
 3. rows whose branch turns unstable at the estimate, or whose residual is grossly out of line
    (above :data:`GROSS` times the robust scale of all residuals, and above :data:`GROSS`
    standard deviations), are flagged as outliers and the fit is repeated without them;
@@ -226,7 +226,7 @@ def calibrate(mech: Mechanism | str | os.PathLike[str], data: Measurements | str
         The measurements (``docs/calibration.md``; :func:`flexkin.io.measurements.read_measurements`).
     fit : sequence of str
         The parameters to fit, by dotted keys (``"leg[*].offset"``, ``"rod.E"``,
-        ``"leg[2].origin"``, ``"platform.attach"``, ...; :mod:`flexkin.calibrate.params`).
+        ``"leg[2].origin"``, ``"platform.attach"``, ...; :mod:`flexkin.calibration.params`).
     loss : str
         ``"linear"`` (default) or a robust loss of :func:`scipy.optimize.least_squares`
         (``"soft_l1"``, ``"huber"``, ``"cauchy"``, ``"arctan"``).
@@ -250,7 +250,7 @@ def calibrate(mech: Mechanism | str | os.PathLike[str], data: Measurements | str
     Raises
     ------
     ValueError
-        Bad arguments, a bad key (:class:`~flexkin.calibrate.params.FitKeyError`) or a bad
+        Bad arguments, a bad key (:class:`~flexkin.calibration.params.FitKeyError`) or a bad
         measurement file (:class:`~flexkin.io.measurements.MeasurementError`).
     """
     t0 = time.perf_counter()

@@ -11,7 +11,7 @@ and an inverse-kinematics measurement holds the pose: ``du/dp = -[A_IK^-1 G_p]_u
 
 ``G_p`` is analytic: the parameters enter the system only through the clamp maps
 ``(A, alpha, L) = c0 + c1 u`` of the legs, their ``EI`` and the attach points ``b_i``
-(:func:`flexkin.calibrate.params.array_derivatives` gives those derivatives exactly), and the
+(:func:`flexkin.calibration.params.array_derivatives` gives those derivatives exactly), and the
 rods' unit quantities do not depend on them.  The scales ``L_ref``, ``F_ref`` of the equations
 are held: they multiply ``G``, which vanishes at an equilibrium.
 """
@@ -43,7 +43,7 @@ def parameter_block(system: System, Xs: NDArray, charts: NDArray, dc0: NDArray, 
     dEI : ndarray (k, 3)
     dattach : ndarray (k, 3, 2)
         Derivatives of the system's arrays per parameter
-        (:func:`~flexkin.calibrate.params.array_derivatives`).
+        (:func:`~flexkin.calibration.params.array_derivatives`).
 
     Returns
     -------

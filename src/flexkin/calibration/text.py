@@ -47,7 +47,7 @@ def _rms_line(name: str, d: dict[str, Any]) -> str:
 
 
 def result_table(res) -> str:
-    """The human-readable report of a :class:`~flexkin.calibrate.result.CalibrationResult`.
+    """The human-readable report of a :class:`~flexkin.calibration.result.CalibrationResult`.
 
     Parameters
     ----------

@@ -22,7 +22,7 @@ key                                scalar parameters (internal units)
 Each scalar parameter knows how to read its value from a mechanism, how to set it
 (:func:`with_values`) and the exact derivative of the equation system's arrays (clamp maps
 ``c0, c1``, ``EI``, attach points) with respect to it (:func:`array_derivatives`), which the
-implicit-function Jacobian of :mod:`flexkin.calibrate.sensitivity` uses.
+implicit-function Jacobian of :mod:`flexkin.calibration.sensitivity` uses.
 """
 
 from __future__ import annotations
