@@ -119,6 +119,9 @@ class _Fit:
     def fun(self, eta: NDArray) -> NDArray:
         m = self.model
         th = self.theta(eta)
+        if np.any(th < self.lower) or np.any(th > self.upper):  # outside the physical bounds (subspace runs)
+            b = self.base_r if self.base_r is not None else np.zeros((len(self.idx), 3))
+            return (10.0 * b + np.where(b >= 0, 1.0, -1.0) * 1e3).ravel()
         X, C, ok = m.solve(th, self.active)
         r = np.empty((len(self.idx), 3))
         for a, k in enumerate(self.idx):
@@ -427,6 +430,9 @@ def calibrate(mech: Mechanism | str | os.PathLike[str], data: Measurements | str
         msgs.append(f"{mres} residuals for {p} parameters: no degrees of freedom left, no standard errors")
     if not identifiable and k_act.size:
         msgs.append("not identifiable from these data: " + "; ".join(c.text for c in combos if not c.identifiable))
+    if m0.gravity is not None and any(m0.gravity):
+        msgs.append("the mechanism file's [environment] gravity is ignored: the fit uses the weightless Kirchhoff "
+                    "model (a Cosserat model with weight is not available to the calibration)")
     n_out = sum(r.outlier for r in out_rows_t)
     if n_out:
         msgs.append(f"{n_out} outlier row{'s' if n_out > 1 else ''} not fitted")
