@@ -137,3 +137,44 @@ def noisy_csv_rows(mech, rows, rng, sigma_xy, sigma_th_deg, sigma_u):
                     "theta_deg": math.degrees(p[2]), "fx": r["load"][0], "fy": r["load"][1], "mz": r["load"][2],
                     "sigma_u": sigma_u, "sigma_xy": sigma_xy, "sigma_theta_deg": sigma_th_deg})
     return out
+
+
+# ---- a vertical prototype under its own weight (Cosserat truth) ------------------------------
+def cosserat_fk_truth(truth_mech, u_phys, near_theta, params, gravity, Ns=(24, 48)):
+    """The pose of a true mechanism with weight at physical inputs ``u_phys``, by the independent
+    discrete-beam oracle (``cosserat_oracle``, Richardson-extrapolated over ``Ns``), started from
+    flexkin's Kirchhoff FK solution nearest to the orientation ``near_theta`` refined into the
+    Cosserat model (the start only).  The oracle knows nothing of input offsets: ``u_phys`` are
+    the physical inputs."""
+    import cosserat_oracle as oracle
+    from flexkin.cosserat import refine, rod_shape
+    from flexkin.cosserat.params import line_loads
+
+    fk = flexkin.fk(truth_mech, u_phys, max_mode=1)
+    st = [s for s in fk.solutions if s.stable is True]
+    sol = min(st, key=lambda s: abs(math.remainder(s.pose[2] - near_theta, 2 * math.pi)))
+    ref = refine(truth_mech, [sol], params=params, gravity=gravity, problem="fk", stability=False,
+                 born_search=False).solutions[0]
+    assert ref.reached
+    f = line_loads(tuple(params), gravity, None)
+    poses = []
+    for N in Ns:
+        rods, shapes = [], []
+        for i, leg in enumerate(truth_mech.legs):
+            rr, p = ref.rods[i], params[i]
+            rods.append(oracle.OracleRod(clamp=rr.clamp, clamp_angle=rr.clamp_angle, length=rr.length,
+                                         EI=leg.rod.EI, EA=p.EA, kGA=p.GA * p.shear_coefficient, load=tuple(f[i])))
+            shp = rod_shape(rr.clamp, rr.clamp_angle, rr.length, leg.rod.EI, rr.base_force, rr.base_moment,
+                            axial_compliance=p.axial_compliance, shear_compliance=p.shear_compliance,
+                            line_load=f[i], n_points=4 * N + 1)
+            sg = np.linspace(0.0, 1.0, 4 * N + 1)
+            shapes.append(lambda s, shp=shp, sg=sg: (np.interp(s, sg, shp.points[:, 0]),
+                                                     np.interp(s, sg, shp.points[:, 1]),
+                                                     np.interp(s, sg, shp.theta)))
+        out = oracle.solve_mechanism(rods, truth_mech.platform.attach, truth_mech.load, np.array(ref.pose), shapes,
+                                     N=N, eigen=False)
+        assert out.converged
+        poses.append(np.asarray(out.pose, float))
+    h2 = (Ns[0] / Ns[1]) ** 2
+    pose = (poses[1] - h2 * poses[0]) / (1 - h2)      # Richardson: the O(h^2) error removed
+    return pose, float(np.max(np.abs(pose - np.asarray(ref.pose))))

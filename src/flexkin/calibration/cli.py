@@ -1,5 +1,5 @@
 """``flexkin calibrate MECH.toml --data MEAS.csv --fit KEY [--fit KEY ...] [--out CALIBRATED.toml]
-[--report DIR] [--plot FILE] [--json]``.
+[--report DIR] [--plot FILE] [--json] [--model kirchhoff|cosserat]``.
 
 Wiring into flexkin's command line (``flexkin/cli.py``), as ``flexkin study``::
 
@@ -65,6 +65,9 @@ def add_calibrate_parser(sub: Any) -> None:
     c.add_argument("--absolute-sigma", action="store_true",
                    help="take the file's standard deviations as exact (default: scale the covariance by the "
                         "reduced chi-square)")
+    c.add_argument("--model", choices=("kirchhoff", "cosserat"), default="kirchhoff",
+                   help="cosserat: refine every prediction with extension, shear and the rods' weight ([rod] density, "
+                        "[environment] gravity), so that a sag is not absorbed into wrong geometry (slower)")
     c.add_argument("--no-loo", action="store_true", help="skip the leave-one-out refits")
     c.add_argument("--max-mode", type=int, default=2, metavar="Q", help="largest d-mode searched when matching "
                                                                         "rows (default 2)")
@@ -119,7 +122,7 @@ def run_calibrate_command(a: argparse.Namespace) -> int:
             return _fail(f"flexkin calibrate: --plot {a.plot!r}: use a .png, .pdf or .svg file")
     try:
         res = calibrate(a.mechanism, a.data, a.fit, loss=a.loss, f_scale=a.f_scale, absolute_sigma=a.absolute_sigma,
-                        max_mode=a.max_mode, loo=not a.no_loo)
+                        max_mode=a.max_mode, loo=not a.no_loo, model=a.model)
     except (MechanismError, ValueError) as e:
         return _fail(str(e) if str(e).startswith("flexkin") else f"flexkin calibrate: {e}")
     if a.json:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -200,8 +201,22 @@ def match_rows(mech: Mechanism, rows: list[Row], max_mode: int = 2) -> list[Matc
     return out
 
 
+@dataclass(frozen=True)
+class _Equilibrium:
+    """The fields of a Solution that the Cosserat refinement reads (pose, inputs, rods)."""
+
+    pose: tuple[float, float, float]
+    inputs: tuple[float, float, float]
+    rods: tuple
+
+
 class Model:
     """Predictions of matched rows as functions of the parameters (branch continuation).
+
+    With ``model="cosserat"`` a row's prediction is its Kirchhoff branch refined into the
+    Cosserat model with extension, shear and weight (:func:`flexkin.cosserat.refine`, the file's
+    ``[environment] gravity`` and rod densities); its derivative is the Kirchhoff one (implicit
+    function theorem) plus the central difference of the refinement's correction.
 
     Parameters
     ----------
@@ -214,8 +229,10 @@ class Model:
     matches : list of Match
     """
 
-    def __init__(self, mech: Mechanism, params, theta0: NDArray, rows: list[Row], matches: list[Match]) -> None:
+    def __init__(self, mech: Mechanism, params, theta0: NDArray, rows: list[Row], matches: list[Match],
+                 model: str = "kirchhoff") -> None:
         self.mech0 = mech
+        self.model = model
         self.params: tuple[Parameter, ...] = tuple(params)
         self.theta0 = np.asarray(theta0, dtype=float)
         self.rows = rows
@@ -303,9 +320,56 @@ class Model:
         return None
 
     def predict_row(self, r: int, X: NDArray) -> NDArray[np.float64]:
-        """The predicted quantity of row ``r`` at its equilibrium ``X`` (pose or inputs)."""
+        """The Kirchhoff prediction of row ``r`` at its equilibrium ``X`` (pose or inputs)."""
         lay = self.system_at(self.theta0).layout
         return np.array(X[lay.pose] if self.rows[r].fixed == "inputs" else X[lay.inputs], dtype=float)
+
+    def _equilibrium(self, theta: NDArray, X: NDArray, charts: NDArray) -> _Equilibrium:
+        from ..rod.state import RodState
+        from ..solve.finish import rod_modes
+
+        mech = self.mech_at(theta)
+        system = self.system_at(theta)
+        lay = system.layout
+        X2, C2 = X[None], np.asarray(charts, dtype=np.int64)[None]
+        q, _ = system.unit_rods(X2, C2)
+        A, al, L = system.clamps(X2[:, lay.inputs])
+        modes = rod_modes(system, X2, C2)
+        rods = tuple(RodState.from_unit(q[0, i], int(C2[0, i]), X[lay.rod[i]], L[0, i], system.EI[i], A[0, i],
+                                        al[0, i], int(modes[0, i]), mech.legs[i].joint) for i in range(3))
+        return _Equilibrium(tuple(float(v) for v in X[lay.pose]), tuple(float(v) for v in X[lay.inputs]), rods)
+
+    def refined(self, theta: NDArray, rows: Sequence[int], Xs: Sequence[NDArray], charts: Sequence[NDArray]
+                ) -> list[NDArray[np.float64] | None]:
+        """Rows' equilibria ``Xs`` (Kirchhoff, at ``theta``) refined into the Cosserat model: their
+        poses (FK rows) or inputs (IK rows); None where the refinement does not reach one (a fold).
+        Rows with the same problem and load are refined in one batch."""
+        from ..cosserat import refine
+        from ..io.material import cosserat_setup
+
+        mech = self.mech_at(theta)
+        params, grav = cosserat_setup(mech)
+        out: list[NDArray[np.float64] | None] = [None] * len(rows)
+        groups: dict[tuple, list[int]] = {}
+        for a, r in enumerate(rows):
+            row = self.rows[r]
+            groups.setdefault((row.fixed, tuple(row.load)), []).append(a)
+        for (fixed, load), members in groups.items():
+            sols = [self._equilibrium(theta, Xs[a], charts[a]) for a in members]
+            ref = refine(mech, sols, params=params, gravity=grav, problem="fk" if fixed == "inputs" else "ik",
+                         load=load, stability=False, born_search=False)
+            for a, rs in zip(members, ref.solutions[:len(members)]):
+                if rs.reached:
+                    out[a] = np.array(rs.pose if fixed == "inputs" else rs.inputs, dtype=float)
+        return out
+
+    def predictions(self, theta: NDArray, rows: Sequence[int], X: NDArray, C: NDArray
+                    ) -> list[NDArray[np.float64] | None]:
+        """Rows' predictions at ``theta`` from their (followed) Kirchhoff equilibria ``X[r]``."""
+        rows = [int(r) for r in rows]
+        if self.model == "cosserat":
+            return self.refined(theta, rows, [X[r] for r in rows], [C[r] for r in rows]) if rows else []
+        return [self.predict_row(r, X[r]) for r in rows]
 
     # ---- all rows ---------------------------------------------------------------------
     def _nearest_known(self, theta: NDArray, r: int):
@@ -350,7 +414,27 @@ class Model:
 
     def jacobian(self, theta: NDArray, X: NDArray, C: NDArray, rows: NDArray) -> NDArray[np.float64]:
         """d(prediction)/d(theta) of rows ``rows`` (indices), (len(rows), 3, k)."""
+        rows = [int(r) for r in rows]
         out = np.empty((len(rows), 3, len(self.params)))
         for a, r in enumerate(rows):
-            out[a] = self.tangent(theta, int(r), X[r], C[r])[-3:]
+            out[a] = self.tangent(theta, r, X[r], C[r])[-3:]
+        if self.model == "cosserat":  # + d(refined - Kirchhoff)/d(theta), central differences
+            for k in range(len(self.params)):
+                h = 0.05 * self.scale[k]
+                corr = []
+                for sg in (1.0, -1.0):
+                    th = theta.copy()
+                    th[k] += sg * h
+                    got = [self.follow(r, X[r], C[r], theta, th) for r in rows]
+                    live = [a for a, g in enumerate(got) if g is not None]
+                    ref = self.refined(th, [rows[a] for a in live], [got[a][0] for a in live],
+                                       [got[a][1] for a in live])
+                    d = np.full((len(rows), 3), np.nan)
+                    for a, pr in zip(live, ref):
+                        if pr is not None:
+                            dd = pr - self.predict_row(rows[a], got[a][0])
+                            d[a] = np.where(self.rows[rows[a]].angular, wrap_to_pi(dd), dd)
+                    corr.append(d)
+                dk = (corr[0] - corr[1]) / (2 * h)
+                out[:, :, k] += np.where(np.isfinite(dk), dk, 0.0)
         return out

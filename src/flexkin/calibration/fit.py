@@ -124,9 +124,12 @@ class _Fit:
             return (10.0 * b + np.where(b >= 0, 1.0, -1.0) * 1e3).ravel()
         X, C, ok = m.solve(th, self.active)
         r = np.empty((len(self.idx), 3))
+        live = [k for k in self.idx if ok[k]]
+        got = dict(zip(live, m.predictions(th, live, X, C)))
         for a, k in enumerate(self.idx):
-            if ok[k]:
-                r[a] = m.rows[k].z(m.predict_row(k, X[k]))
+            pred = got.get(k)
+            if pred is not None:
+                r[a] = m.rows[k].z(pred)
             else:  # the branch is lost before th: a large residual makes the trust region shrink
                 b = self.base_r[a] if self.base_r is not None else np.zeros(3)
                 r[a] = 10.0 * b + np.where(b >= 0, 1.0, -1.0) * 1e3
@@ -218,7 +221,7 @@ def _rms(rows: Sequence[RowFit], which: str) -> dict[str, float | None]:
 
 def calibrate(mech: Mechanism | str | os.PathLike[str], data: Measurements | str | os.PathLike[str] | Sequence[dict],
               fit: Sequence[str], *, loss: str = "linear", f_scale: float = 1.0, absolute_sigma: bool = False,
-              max_mode: int = 2, loo: bool = True, max_nfev: int = 200) -> CalibrationResult:
+              max_mode: int = 2, loo: bool = True, max_nfev: int = 200, model: str = "kirchhoff") -> CalibrationResult:
     """Identify a mechanism's parameters from measured (inputs, pose) rows.
 
     Parameters
@@ -244,6 +247,13 @@ def calibrate(mech: Mechanism | str | os.PathLike[str], data: Measurements | str
         Compute the leave-one-out prediction errors.
     max_nfev : int
         Residual evaluations allowed to the optimizer.
+    model : {"kirchhoff", "cosserat"}
+        ``"cosserat"``: each row's Kirchhoff branch is refined into the Cosserat model with
+        extension, shear and weight (``[rod] density``, ``[environment] gravity``) before it is
+        compared with the measurement, so that a vertical prototype's sag is not absorbed into
+        wrong geometry; needs ``E`` and ``radius`` (fit ``E``, not ``EI``).  Slower: one
+        refinement per row and evaluation, and central differences of the refinement's
+        correction in the Jacobian.
 
     Returns
     -------
@@ -261,15 +271,24 @@ def calibrate(mech: Mechanism | str | os.PathLike[str], data: Measurements | str
         raise ValueError(f"loss: expected one of {', '.join(LOSSES)}, got {loss!r}")
     if not (isinstance(f_scale, (int, float)) and math.isfinite(f_scale) and f_scale > 0):
         raise ValueError(f"f_scale: expected a positive number, got {f_scale!r}")
+    if model not in ("kirchhoff", "cosserat"):
+        raise ValueError(f"model: expected 'kirchhoff' or 'cosserat', got {model!r}")
     if isinstance(fit, str):
         fit = [fit]
     m0, raw, meas = _load_inputs(mech, data)
     params = parse_fit_keys(list(fit), m0, raw)
+    if model == "cosserat":
+        from ..io.material import cosserat_setup
+
+        cosserat_setup(m0)  # E and radius on every rod, else a ValueError naming the leg
+        bad = [p.name for p in params if p.prop == "EI"]
+        if bad:
+            raise ValueError(f"--fit {bad[0]}: the Cosserat model's stiffnesses come from E and radius; fit E")
     theta0 = values_of(m0, params)
     rows = prepare_rows(m0, meas.rows)
     matches = match_rows(m0, rows, max_mode)
     t_match = time.perf_counter() - t0
-    model = Model(m0, params, theta0, rows, matches)
+    model = Model(m0, params, theta0, rows, matches, model=model)
     lower = np.where([p.positive for p in params], 1e-3 * theta0, -np.inf)
     upper = np.full(len(params), np.inf)
     n = len(rows)
@@ -309,7 +328,15 @@ def calibrate(mech: Mechanism | str | os.PathLike[str], data: Measurements | str
             active[k] = False
             new_out = True
         # gross errors: compared with the robust scale of the fitted residuals
-        zs = {k: model.rows[k].z(model.predict_row(k, X[k])) for k in np.flatnonzero(active)}
+        zs = {}
+        act_k = list(np.flatnonzero(active))
+        for k, pred in zip(act_k, model.predictions(th, act_k, X, C)):
+            if pred is None:
+                reasons[k] = "its branch could not be refined into the Cosserat model at the fitted parameters (a fold)"
+                active[k] = False
+                new_out = True
+            else:
+                zs[k] = model.rows[k].z(pred)
         if len(zs) >= 3:
             allz = np.concatenate(list(zs.values()))
             s_rob = 1.4826 * float(np.median(np.abs(allz)))
@@ -395,13 +422,20 @@ def calibrate(mech: Mechanism | str | os.PathLike[str], data: Measurements | str
             except (ValueError, np.linalg.LinAlgError):
                 continue
             Xk, Ck, okk = model.solve(thk, np.eye(n, dtype=bool)[k])
-            if okk[k]:
-                loo_err[int(k)] = _diff(rows[k], model.predict_row(k, Xk[k]))
+            pk = model.predictions(thk, [k], Xk, Ck)[0] if okk[k] else None
+            if pk is not None:
+                loo_err[int(k)] = _diff(rows[k], pk)
     t_loo = time.perf_counter() - t2
     out_rows = []
+    matched = [k for k, mt in enumerate(matches) if mt.ok]
+    X0 = np.array([mt.x if mt.ok else Xa[k] for k, mt in enumerate(matches)])
+    C0 = np.array([mt.charts if mt.ok else Ca[k] for k, mt in enumerate(matches)])
+    pbs = dict(zip(matched, model.predictions(theta0, matched, X0, C0)))
+    reached = [k for k in range(n) if oka[k]]
+    pas = dict(zip(reached, model.predictions(theta, reached, Xa, Ca)))
     for k, (row, mt) in enumerate(zip(rows, matches)):
-        pb = model.predict_row(k, mt.x) if mt.ok else None
-        pa = model.predict_row(k, Xa[k]) if oka[k] else None
+        pb = pbs.get(k)
+        pa = pas.get(k)
         rb = None if pb is None else _diff(row, pb)
         ra = None if pa is None else _diff(row, pa)
         units = ("m", "m", "deg") if row.fixed == "inputs" else tuple(
@@ -430,9 +464,9 @@ def calibrate(mech: Mechanism | str | os.PathLike[str], data: Measurements | str
         msgs.append(f"{mres} residuals for {p} parameters: no degrees of freedom left, no standard errors")
     if not identifiable and k_act.size:
         msgs.append("not identifiable from these data: " + "; ".join(c.text for c in combos if not c.identifiable))
-    if m0.gravity is not None and any(m0.gravity):
+    if model.model == "kirchhoff" and m0.gravity is not None and any(m0.gravity):
         msgs.append("the mechanism file's [environment] gravity is ignored: the fit uses the weightless Kirchhoff "
-                    "model (a Cosserat model with weight is not available to the calibration)")
+                    "model (model='cosserat' / --model cosserat includes the rods' weight)")
     n_out = sum(r.outlier for r in out_rows_t)
     if n_out:
         msgs.append(f"{n_out} outlier row{'s' if n_out > 1 else ''} not fitted")
@@ -445,5 +479,5 @@ def calibrate(mech: Mechanism | str | os.PathLike[str], data: Measurements | str
         correlation=corr, singular_values=tuple(float(v) for v in rel), combinations=tuple(combos),
         identifiable=identifiable, rms_before=_rms(out_rows_t, "before"), rms_after=_rms(out_rows_t, "after"),
         loo_rms=_rms(out_rows_t, "loo"), chi2=chi2, dof=int(dof), scale=float(math.sqrt(s2)) if dof > 0 else math.nan,
-        absolute_sigma=absolute_sigma, loss=loss, model="kirchhoff", source=meas.source)
+        absolute_sigma=absolute_sigma, loss=loss, model=model.model, source=meas.source)
 

@@ -61,7 +61,8 @@ def result_table(res) -> str:
     m = res.mechanism
     n_fit = sum(not r.outlier for r in res.rows)
     L.append(f"calibration of {getattr(m, 'name', '?')} from {res.source}: {len(res.rows)} rows "
-             f"({n_fit} fitted), {len(res.parameters)} parameters, loss {res.loss}")
+             f"({n_fit} fitted), {len(res.parameters)} parameters, loss {res.loss}"
+             + ("" if res.model == "kirchhoff" else f", {res.model} model"))
     L.append("")
     head = f"  {'parameter':<24} {'initial':>14} {'estimate':>14} {'std. error':>14} {'95% interval':>30}"
     L += [head, "  " + "-" * (len(head) - 2)]
