@@ -409,3 +409,19 @@ def test_cosserat_model_keeps_the_sag_out_of_the_geometry(examples_dir):
         assert abs(p.value - o) < 1e-5           # exact data: the truth, to the oracle's accuracy
     bias = max(abs(p.value - o) / p.stderr for p, o in zip(kir.parameters, off))
     assert bias > 5.0                            # the sag went into the offsets
+
+
+def test_robust_loss_bounds_a_gross_error(proto, truth_rows):
+    """soft_l1 with a 3-sigma margin: one 20 mm input error barely moves the estimates (the row is
+    still flagged afterwards); bad loss names are refused."""
+    data = noisy_csv_rows(proto, truth_rows, np.random.default_rng(7), SIGMA_XY, SIGMA_TH, SIGMA_U)
+    data[2] = {**data[2], "u1": data[2]["u1"] - 0.02}
+    res = calibrate(proto, data, FIT, max_mode=1, loo=False, loss="soft_l1", f_scale=3.0)
+    assert res.loss == "soft_l1" and [r.index for r in res.outliers] == [3]
+    truth = _true_values(proto)
+    for p in res.parameters:
+        assert abs(p.value - truth[p.key]) <= 4.0 * p.stderr
+    with pytest.raises(ValueError, match="loss"):
+        calibrate(proto, data, FIT, loss="l1")
+    with pytest.raises(ValueError, match="model"):
+        calibrate(proto, data, FIT, model="fem")
