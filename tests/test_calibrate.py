@@ -159,6 +159,7 @@ def test_parameter_jacobian_matches_central_differences(examples_dir, name, keys
             worst = max(worst, err)
             assert err < 1e-5, (name, r, params[k].name, err, fd, D[:, k])
     assert worst < 1e-5
+    print(f"{name}: {len(params)} parameters, worst relative error {worst:.2e}")
 
 
 # ---- identifiability, outliers -----------------------------------------------------------

@@ -27,7 +27,7 @@ import math
 import os
 import time
 import tomllib
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
