@@ -152,6 +152,13 @@ def cli_ik_row(rep: int, rows: list[Row], ctx: dict) -> None:
                     _times(run, rep), [], 0.5, 0.3, unit="s"))
 
 
+def cli_calibrate_row(rep: int, rows: list[Row], ctx: dict) -> None:
+    run = _process(["calibrate", str(PROTO), "--data", str(EXAMPLES / "prototype_measurements.csv"),
+                    "--fit", "leg[*].offset"])
+    rows.append(Row("`flexkin calibrate examples/prototype_3pfr.toml --data examples/prototype_measurements.csv "
+                    "--fit 'leg[*].offset'`, whole process", _times(run, rep), [], 10.0, 3.0, unit="s"))
+
+
 def fk_rows(rep: int, rows: list[Row], ctx: dict) -> None:
     import flexkin
 
@@ -327,6 +334,7 @@ def main(argv: list[str] | None = None) -> int:
     ctx: dict = {}
     t_all = time.perf_counter()
     cli_ik_row(rep, rows, ctx)
+    cli_calibrate_row(rep, rows, ctx)
     ik_rows(rep, rows, ctx)
     if not a.quick:
         fk_rows(rep, rows, ctx)

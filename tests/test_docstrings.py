@@ -21,7 +21,7 @@ import flexkin
 #: layouts, continuation internals -- are documented in their module headers instead)
 API_PACKAGES = ("flexkin", "flexkin.cosserat", "flexkin.study", "flexkin.mechanism", "flexkin.io",
                 "flexkin.analysis.indices", "flexkin.analysis.feasibility", "flexkin.analysis.verify",
-                "flexkin.analysis.stability", "flexkin.analysis.jacobian", "flexkin.plot")
+                "flexkin.analysis.stability", "flexkin.analysis.jacobian", "flexkin.plot", "flexkin.calibration")
 
 
 def _documented(doc: str) -> set[str]:

@@ -126,3 +126,23 @@ def test_cosserat_section_refines_tables_1_and_2_and_the_vertical_prototype(repo
     assert int(m.group(1)) == sum(r[2] in ("refined", "unlisted") for r in vrows)
     stable_moves = [float(r[4].split()[0]) for r in vrows if r[1] == "yes" and r[6] == "yes"]
     assert stable_moves and all(0.1 < v < 50.0 for v in stable_moves)  # mm: a visible sag, not a collapse
+
+
+def test_calibration_section_fits_the_prototype(report):
+    """Section 9: the three offsets reduce the RMS errors of the measured Tables 1-2, E is
+    reported as not identifiable from unloaded rows, both figures are written and linked."""
+    md = (report / "report.md").read_text(encoding="utf-8")
+    sec = _section(md, "## 9. Calibrating the prototype")
+    offs = [ln for ln in sec.splitlines() if ln.startswith("| `leg[")]
+    assert len(offs) == 6  # three offsets, twice
+    assert all("not identified" not in ln for ln in offs)
+    assert re.search(r"\| `rod.E` \| 68.000 GPa \| 68.000 GPa \| not identified", sec)
+    m = re.search(r"RMS error falls from ([\d.]+) mm, ([\d.]+)° and ([\d.]+) mm .* to ([\d.]+) mm, ([\d.]+)° and "
+                  r"([\d.]+) mm; leave-one-out predictions miss by ([\d.]+) mm, ([\d.]+)° and ([\d.]+) mm", sec)
+    assert m, sec
+    v = [float(x) for x in m.groups()]
+    assert v[4] < v[1] and v[5] < v[2]           # orientations and strokes improve
+    assert all(x > 0 for x in v[6:])             # leave-one-out errors stated
+    assert "Young's modulus** is not identifiable" in sec
+    for f in ("calibration_offsets.png", "calibration_offsets_E.png"):
+        assert (report / f).stat().st_size > 10_000 and f"]({f})" in sec

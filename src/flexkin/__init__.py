@@ -26,6 +26,7 @@ __all__ = [
     "FlexkinWarning", "MechanismError", "Leg", "Mechanism", "Platform", "Rod", "load_mechanism",
     "mechanism_from_dict", "ik", "fk", "follow_path", "workspace", "check_feasibility", "solve_rod",
     "RodState", "RodInverseResult", "KinematicsResult", "Solution", "PathResult", "Workspace", "__version__",
+    "calibrate", "CalibrationResult",
 ]
 
 #: public name -> (module, attribute), resolved lazily (PEP 562)
@@ -42,6 +43,8 @@ _LAZY = {
     "Solution": ("flexkin.results", "Solution"),
     "PathResult": ("flexkin.solve.path", "PathResult"),
     "Workspace": ("flexkin.solve.workspace", "Workspace"),
+    "calibrate": ("flexkin.calibration.fit", "calibrate"),
+    "CalibrationResult": ("flexkin.calibration.result", "CalibrationResult"),
 }
 
 

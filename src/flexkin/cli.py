@@ -1,5 +1,5 @@
 """Command-line interface: ``flexkin {show, rod, ik, fk, path, workspace, refine, reproduce, study,
-explore} ...`` (SPEC §4).
+explore, calibrate} ...`` (SPEC §4).
 
 Thin: parse -> call the library -> print a table or the JSON contract -> write figures and data
 files (every file written is named on stderr).  User mistakes (bad files, bad numbers) end with
@@ -219,6 +219,9 @@ def _build_parser() -> argparse.ArgumentParser:
     from .study.cli import add_study_parser
 
     add_study_parser(sub)
+    from .calibration.cli import add_calibrate_parser
+
+    add_calibrate_parser(sub)
     add_explore_parser(sub)
     rp = sub.add_parser("reproduce", help="run the paper's whole analysis on the bundled examples; write a report")
     rp.add_argument("--out", default="flexkin_report", help="output directory (default flexkin_report)")
@@ -339,6 +342,12 @@ def _cmd_explore(a) -> int:
     from .explore.cli import run_explore_command
 
     return run_explore_command(a)
+
+
+def _cmd_calibrate(a) -> int:
+    from .calibration.cli import run_calibrate_command
+
+    return run_calibrate_command(a)
 
 
 def _cmd_study(a) -> int:
@@ -752,7 +761,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             _check_outputs(a)
             handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics, "fk": _cmd_kinematics,
                        "path": _cmd_path, "workspace": _cmd_workspace, "reproduce": _cmd_reproduce,
-                       "study": _cmd_study, "explore": _cmd_explore, "refine": _cmd_refine}[a.command]
+                       "study": _cmd_study, "explore": _cmd_explore, "refine": _cmd_refine,
+                       "calibrate": _cmd_calibrate}[a.command]
             return handler(a)
         except CLIError as e:
             print(str(e), file=sys.stderr)

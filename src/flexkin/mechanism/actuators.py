@@ -17,6 +17,12 @@ SPEC §2:
 * ``"prismatic"``: ``u = rho`` (m); ``A = origin + rho (cos angle, sin angle)``, ``alpha = angle``;
 * ``"revolute"``: ``u = phi`` (rad inside, deg outside); ``A = origin``, ``alpha = phi``;
 * ``"length"``: ``u = s`` (m), the free rod length; ``A = origin``, ``alpha = angle``, ``L = s``.
+
+Input zero offset (SPEC §4, ``[[leg]] offset``): the leg behaves as if its input were
+``u + offset``.  It enters here and nowhere else: :meth:`Actuator.affine` maps ``u + offset``,
+:meth:`Actuator.from_tip` returns the input ``u`` (the physical value minus the offset), and
+ranges and :meth:`Actuator.check_input` see the commanded input ``u`` (the physical free length
+of a length leg, ``u + offset``, must be > 0).
 """
 
 from __future__ import annotations
@@ -63,13 +69,16 @@ class Actuator(ABC):
     length : float or None
         The rod's free length (m) for fixed-length legs, ``None`` for length legs.
     range : (float, float) or None
-        Actuator stroke in internal units (m or rad).
+        Actuator stroke in internal units (m or rad), on the commanded input ``u``.
+    offset : float
+        Input zero offset in internal units (m or rad): the clamp is that of ``u + offset``.
     """
 
     origin: tuple[float, float]
     angle: float
     length: float | None
     range: tuple[float, float] | None = None
+    offset: float = 0.0
 
     #: registry name, one-letter code of the paper's notation, and the input's display unit
     name: ClassVar[str] = ""
@@ -80,8 +89,44 @@ class Actuator(ABC):
 
     # ---- clamp map -------------------------------------------------------------------------
     @abstractmethod
+    def _affine(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(c0, c1)`` of the map without offset: ``(A_x, A_y, alpha, L) = c0 + c1 u_phys``."""
+
     def affine(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """``(c0, c1)``, each shape (4,): ``(A_x, A_y, alpha, L) = c0 + c1 u``."""
+        """``(c0, c1)``, each shape (4,): ``(A_x, A_y, alpha, L) = c0 + c1 u`` for the commanded
+        input ``u`` (the offset is folded into ``c0``: ``c0 = c0_phys + c1 offset``)."""
+        c0, c1 = self._affine()
+        return c0 + c1 * self.offset, c1
+
+    def affine_derivative(self, name: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(d c0, d c1)`` of :meth:`affine` with respect to one of the leg's parameters
+        (exact; used by the calibration's implicit-function Jacobian).
+
+        Parameters
+        ----------
+        name : {"origin_x", "origin_y", "offset", "angle", "length"}
+            ``angle`` in rad, the others in internal units (m, or rad for a revolute offset).
+
+        Returns
+        -------
+        dc0, dc1 : ndarray (4,)
+
+        Raises
+        ------
+        ValueError
+            If the parameter does not act on this kind of leg.
+        """
+        z = np.zeros(4)
+        if name == "origin_x":
+            return np.array([1.0, 0.0, 0.0, 0.0]), z
+        if name == "origin_y":
+            return np.array([0.0, 1.0, 0.0, 0.0]), z
+        if name == "offset":
+            return self._affine()[1].copy(), z
+        return self._affine_derivative(name)
+
+    def _affine_derivative(self, name: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        raise ValueError(f"a {self.name} leg has no parameter {name!r}")
 
     def clamp(self, u: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Clamp point ``A`` (``u.shape + (2,)``), tangent angle ``alpha`` and free length ``L``
@@ -134,11 +179,17 @@ class Actuator(ABC):
     def level_set(self, B: NDArray[np.float64]) -> LevelSet:
         """The rods (unit rods, local clamp frame) whose tip can reach the world point ``B``."""
 
-    @abstractmethod
     def from_tip(self, B: NDArray[np.float64], x: NDArray, y: NDArray
                  ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """Input ``u``, clamp angle ``alpha`` and length ``L`` that put unit-rod tips ``(x, y)``
-        (on :meth:`level_set`) at ``B``."""
+        """Input ``u`` (commanded: the physical value minus the offset), clamp angle ``alpha``
+        and length ``L`` that put unit-rod tips ``(x, y)`` (on :meth:`level_set`) at ``B``."""
+        u, alpha, L = self._from_tip(B, x, y)
+        return (u - self.offset if self.offset else u), alpha, L
+
+    @abstractmethod
+    def _from_tip(self, B: NDArray[np.float64], x: NDArray, y: NDArray
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """:meth:`from_tip` for the physical input (no offset)."""
 
     @abstractmethod
     def condition(self, B: NDArray[np.float64]) -> tuple[int, NDArray[np.float64]]:
@@ -153,17 +204,25 @@ class Prismatic(Actuator):
     name: ClassVar[str] = "prismatic"
     letter: ClassVar[str] = "P"
 
-    def affine(self):
+    def _affine(self):
         c0 = np.array([self.origin[0], self.origin[1], self.angle, float(self.length)])
         c1 = np.array([math.cos(self.angle), math.sin(self.angle), 0.0, 0.0])
         return c0, c1
+
+    def _affine_derivative(self, name):
+        ca, sa = math.cos(self.angle), math.sin(self.angle)
+        if name == "angle":  # A = origin + (u + offset) (cos, sin)(angle), alpha = angle
+            return (np.array([-self.offset * sa, self.offset * ca, 1.0, 0.0]), np.array([-sa, ca, 0.0, 0.0]))
+        if name == "length":
+            return np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(4)
+        return super()._affine_derivative(name)
 
     def level_set(self, B):
         d = np.asarray(B, dtype=float) - np.asarray(self.origin)
         h = (-math.sin(self.angle) * d[0] + math.cos(self.angle) * d[1]) / float(self.length)
         return LevelSet(lambda x, y: y - h)  # Fig. 5: the tip at height h above the guide
 
-    def from_tip(self, B, x, y):
+    def _from_tip(self, B, x, y):
         d = np.asarray(B, dtype=float) - np.asarray(self.origin)
         L = float(self.length)
         u = math.cos(self.angle) * d[0] + math.sin(self.angle) * d[1] - L * np.asarray(x)
@@ -184,15 +243,20 @@ class Revolute(Actuator):
     input_unit: ClassVar[str] = "deg"
     angular: ClassVar[bool] = True
 
-    def affine(self):
+    def _affine(self):
         return (np.array([self.origin[0], self.origin[1], 0.0, float(self.length)]),
                 np.array([0.0, 0.0, 1.0, 0.0]))
+
+    def _affine_derivative(self, name):
+        if name == "length":
+            return np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(4)
+        return super()._affine_derivative(name)
 
     def level_set(self, B):
         r = float(np.hypot(*(np.asarray(B, dtype=float) - np.asarray(self.origin)))) / float(self.length)
         return LevelSet(lambda x, y: np.hypot(x, y) - r)  # Fig. 8: the tip on a circle
 
-    def from_tip(self, B, x, y):
+    def _from_tip(self, B, x, y):
         d = np.asarray(B, dtype=float) - np.asarray(self.origin)
         alpha = np.unwrap(math.atan2(d[1], d[0]) - np.arctan2(y, x)) if np.ndim(x) else \
             np.asarray(math.atan2(d[1], d[0]) - math.atan2(float(y), float(x)))
@@ -210,12 +274,18 @@ class Length(Actuator):
     name: ClassVar[str] = "length"
     letter: ClassVar[str] = "L"
 
-    def affine(self):
+    def _affine(self):
         return (np.array([self.origin[0], self.origin[1], self.angle, 0.0]), np.array([0.0, 0.0, 0.0, 1.0]))
 
+    def _affine_derivative(self, name):
+        if name == "angle":
+            return np.array([0.0, 0.0, 1.0, 0.0]), np.zeros(4)
+        return super()._affine_derivative(name)
+
     def check_input(self, u, i):
-        if not u > 0:
-            raise ValueError(f"input {i + 1}: the free length of a length-actuated leg must be > 0, got {u!r}")
+        if not u + self.offset > 0:
+            extra = f" (input {u!r} + offset {self.offset!r})" if self.offset else f", got {u!r}"
+            raise ValueError(f"input {i + 1}: the free length of a length-actuated leg must be > 0{extra}")
 
     def level_set(self, B):
         d = np.asarray(B, dtype=float) - np.asarray(self.origin)
@@ -223,7 +293,7 @@ class Length(Actuator):
         cb, sb = math.cos(beta), math.sin(beta)
         return LevelSet(lambda x, y: x * sb - y * cb, lambda x, y: x * cb + y * sb > 1e-9)
 
-    def from_tip(self, B, x, y):
+    def _from_tip(self, B, x, y):
         d = np.asarray(B, dtype=float) - np.asarray(self.origin)
         L = float(np.hypot(*d)) / np.hypot(x, y)
         return L, np.full_like(L, self.angle), L

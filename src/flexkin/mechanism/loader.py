@@ -21,7 +21,10 @@ leg by ``_resolve_material`` (a leg's own value wins; a leg giving ``G`` or ``po
 drops the other one inherited from ``[rod]``), and stored on each leg's
 :class:`~flexkin.mechanism.model.Rod` and on :attr:`Mechanism.gravity`.
 
-Angles (``angle``, and ``range`` of revolute legs) are degrees in the file and radians in
+``[[leg]] offset`` (m, or deg for revolute legs; default 0) is the input's zero offset: the leg
+behaves as if its input were ``u + offset`` (:mod:`flexkin.mechanism.actuators`).
+
+Angles (``angle``, ``offset`` and ``range`` of revolute legs) are degrees in the file and radians in
 the returned :class:`~flexkin.mechanism.model.Mechanism`.
 
 Physically implausible values (a rod radius comparable to its length, ``E = 200`` Pa, a
@@ -77,7 +80,7 @@ _ROD_KEYS = ("length", "E", "radius", "EI")
 #: material keys beyond bending, used by the Cosserat refinement (issue 16); per-leg overrides
 #: work as for the other rod keys
 MATERIAL_KEYS = ("G", "poisson", "density", "shear_coefficient")
-_LEG_KEYS = ("actuation", "origin", "angle", "range", "joint", "tip_angle") + _ROD_KEYS + MATERIAL_KEYS
+_LEG_KEYS = ("actuation", "origin", "angle", "range", "joint", "tip_angle", "offset") + _ROD_KEYS + MATERIAL_KEYS
 _ENVIRONMENT_KEYS = ("gravity",)
 #: relative tolerance of the agreement of G with E / (2 (1 + poisson)) when all three are given
 _G_RTOL = 1e-6
@@ -380,6 +383,13 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float], material_defaults: 
                 f"{path}.range", f"a length leg's range is a free rod length and must be > 0, got [{lo:g}, {hi:g}] m"
             )
         rng = (math.radians(lo), math.radians(hi)) if act == "revolute" else (lo, hi)
+    offset = 0.0
+    if "offset" in table:  # the input's zero offset: m, or deg for revolute legs
+        offset = _number(table["offset"], f"{path}.offset")
+        if act != "revolute" and abs(offset) > LENGTH_LIMITS[1]:
+            raise _KeyProblem(f"{path}.offset", f"must be within +-{LENGTH_LIMITS[1]:g} m, got {offset!r}")
+        if act == "revolute":
+            offset = math.radians(offset)
     rod = _resolve_rod(rod_defaults, _rod_values(table, path), act, path)
     material = _resolve_material(material_defaults or {}, _material_values(table, path), rod.E, path)
     if material:
@@ -401,7 +411,7 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float], material_defaults: 
         warnings.warn(f"{path}.tip_angle: ignored: a {joint} joint leaves the rod's tip free to turn "
                       f"(tip_angle applies to joint = \"clamped\")", FlexkinWarning, stacklevel=4)
     return Leg(actuation=act, origin=origin, angle=math.radians(angle_deg), rod=rod, range=rng,  # type: ignore[arg-type]
-               joint=joint, tip_angle=math.radians(tip_angle))  # type: ignore[arg-type]
+               joint=joint, tip_angle=math.radians(tip_angle), offset=offset)  # type: ignore[arg-type]
 
 
 def _platform(value: Any) -> Platform:

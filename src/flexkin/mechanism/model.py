@@ -259,6 +259,9 @@ class Leg:
         Rod-platform joint (default ``"pinned"``).
     tip_angle : float
         Clamped joints: the rod's tangent at ``B_i`` in the platform frame (rad).
+    offset : float
+        Input zero offset in internal units (m, or rad for revolute legs): the leg behaves as
+        if its input were ``u + offset`` (SPEC §4; applied by the actuator only).
     """
 
     actuation: Actuation
@@ -268,6 +271,7 @@ class Leg:
     range: tuple[float, float] | None = None
     joint: JointName = "pinned"
     tip_angle: float = 0.0
+    offset: float = 0.0
     actuator: Actuator = field(init=False, repr=False, compare=False)
     platform_joint: Joint = field(init=False, repr=False, compare=False)
 
@@ -284,6 +288,9 @@ class Leg:
         object.__setattr__(self, "origin", _bounded_point(self.origin, "leg.origin"))
         object.__setattr__(self, "angle", _finite(self.angle, "leg.angle"))
         object.__setattr__(self, "tip_angle", _finite(self.tip_angle, "leg.tip_angle"))
+        object.__setattr__(self, "offset", _finite(self.offset, "leg.offset"))
+        if self.actuation != "revolute" and abs(self.offset) > LENGTH_LIMITS[1]:
+            raise MechanismError(f"leg.offset: must be within +-{LENGTH_LIMITS[1]:g} m, got {self.offset:.6g}")
         if not isinstance(self.rod, Rod):
             raise MechanismError(f"leg.rod: expected a Rod, got {self.rod!r}")
         if self.actuation != "length" and self.rod.length is None:
@@ -300,7 +307,8 @@ class Leg:
                 )
             object.__setattr__(self, "range", (lo, hi))
         length = None if self.actuation == "length" else self.rod.length
-        object.__setattr__(self, "actuator", ACTUATORS[self.actuation](self.origin, self.angle, length, self.range))
+        object.__setattr__(self, "actuator",
+                           ACTUATORS[self.actuation](self.origin, self.angle, length, self.range, self.offset))
         object.__setattr__(self, "platform_joint", JOINTS[self.joint](self.tip_angle))
 
     # ---- delegation to the actuator --------------------------------------------------------
@@ -606,6 +614,9 @@ class Mechanism:
                 f"    {i + 1:>2}  {leg.actuation:<10} {leg.origin[0]:>13.6g} {leg.origin[1]:>13.6g} "
                 f"{ang:>11}  {rng:<24} {L:>8} {leg.rod.EI:>11.6g} {rad:>11}"
             )
+        if any(leg.offset for leg in self.legs):
+            lines.append("  input zero offsets (the leg acts as if its input were u + offset): " + ", ".join(
+                f"leg {i + 1} = {float(leg.to_display(leg.offset)):.6g} {leg.input_unit}" for i, leg in enumerate(self.legs)))
         lines.append("  platform attach points b_i (platform frame) [m]:")
         for i, b in enumerate(self.platform.attach):
             lines.append(f"    b{i + 1} = ({b[0]:.6g}, {b[1]:.6g})")

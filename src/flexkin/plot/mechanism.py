@@ -52,18 +52,18 @@ def _draw_leg_base(ax: Axes, leg: Leg, scale: float, u: float | None) -> None:
         if leg.range is not None:
             lo, hi = min(lo, leg.range[0]), max(hi, leg.range[1])
         if u is not None:
-            lo, hi = min(lo, u), max(hi, u)
+            lo, hi = min(lo, u + leg.offset), max(hi, u + leg.offset)
         a, b = o + lo * d, o + hi * d
         ax.plot([a[0], b[0]], [a[1], b[1]], color=_GUIDE, lw=6, alpha=0.6, solid_capstyle="butt", zorder=1)
         ax.plot(*o, marker="o", ms=5, mfc="white", mec=_BASE, zorder=3)
-        if u is not None:  # the slider carrying the clamp
-            c = o + u * d
+        if u is not None:  # the slider carrying the clamp (at u + offset)
+            c = np.asarray(leg.clamp(u)[0], dtype=float)
             ax.plot(*c, marker="s", ms=9, mfc="0.8", mec=_BASE, zorder=3)
     elif leg.actuation == "revolute":
         _draw_ground(ax, o, mark, zorder=2)
         ax.plot(*o, marker="o", ms=9, mfc="white", mec=_BASE, mew=1.5, zorder=3)
-        if u is not None:  # clamp tangent direction
-            t = o + 2.5 * mark * _unit(u)
+        if u is not None:  # clamp tangent direction (input + offset)
+            t = o + 2.5 * mark * _unit(u + leg.offset)
             ax.plot([o[0], t[0]], [o[1], t[1]], color=_BASE, lw=1.5, zorder=3)
     else:  # length: a sleeve behind the exit point
         back = o - 3.0 * mark * d

@@ -22,6 +22,7 @@ key                            meaning (unit)
   KEY = ``origin_angle``       polar angle of the origin about O (deg), keeping its
                                distance (``leg[i]`` only)
   KEY = ``origin_x``/``_y``    a coordinate of the origin (m; ``leg[i]`` only)
+  KEY = ``offset``             the input's zero offset (m, or deg for revolute legs)
 ``platform.scale``             attach points b_i multiplied by this factor (> 0)
 ``platform.radius``            every attach point at this distance from P (m, > 0), keeping
                                its polar angle in the platform frame
@@ -52,7 +53,7 @@ __all__ = ["ParamKey", "GridKeyError", "parse_key", "valid_keys", "check_keys", 
            "scaled_settings"]
 
 _ROD_PROPS = ("length", "EI", "E", "radius")
-_LEG_ALL_PROPS = _ROD_PROPS + ("angle", "origin_radius")
+_LEG_ALL_PROPS = _ROD_PROPS + ("angle", "origin_radius", "offset")
 _LEG_ONE_PROPS = _LEG_ALL_PROPS + ("origin_angle", "origin_x", "origin_y")
 _PLATFORM_PROPS = ("scale", "radius")
 _LOAD_PROPS = ("force_x", "force_y", "moment")
@@ -61,11 +62,11 @@ _LIMITS_PROPS = ("max_strain",)
 _POSITIVE = {"length", "EI", "E", "radius", "origin_radius", "scale", "max_strain"}
 _UNITS = {"length": "m", "EI": "N m^2", "E": "Pa", "radius": "m", "angle": "deg", "origin_radius": "m",
           "origin_angle": "deg", "origin_x": "m", "origin_y": "m", "scale": "", "force_x": "N",
-          "force_y": "N", "moment": "N m", "max_strain": ""}
+          "force_y": "N", "moment": "N m", "max_strain": "", "offset": "m or deg"}
 _LEG_RE = re.compile(r"^leg(?:\[(\d+)\])?\.([A-Za-z_]+)$")
 #: order in which the properties of one leg are applied (EI last: it wins over E/radius)
 _ORDER = {"origin_radius": 0, "origin_angle": 1, "origin_x": 2, "origin_y": 3, "angle": 4, "length": 5,
-          "radius": 6, "E": 7, "EI": 8}
+          "radius": 6, "E": 7, "EI": 8, "offset": 9}
 _SPECIFICITY = {"rod": 0, "leg": 1, "legi": 2}
 
 
@@ -305,8 +306,8 @@ def apply_design(base: Mapping[str, Any], mech: Any, params: Mapping[str, float]
         t = data["leg"][i]
         if prop in _ROD_PROPS:
             _set_rod(t, prop, v)
-        elif prop == "angle":
-            t["angle"] = v
+        elif prop in ("angle", "offset"):
+            t[prop] = v
         elif prop in ("origin_radius", "origin_angle"):
             r, a = _polar(t["origin"])
             if prop == "origin_radius":
@@ -353,6 +354,8 @@ def _scale_all(data: dict[str, Any], s: float) -> None:
             _set_rod(t, "radius", s * float(t["radius"]))
         if "range" in t and t.get("actuation") != "revolute":
             t["range"] = [s * float(t["range"][0]), s * float(t["range"][1])]
+        if "offset" in t and t.get("actuation") != "revolute":
+            t["offset"] = s * float(t["offset"])
 
 
 def scaled_settings(settings: Mapping[str, Any], params: Mapping[str, float]) -> dict[str, Any]:
