@@ -1,44 +1,24 @@
 """The calibrated mechanism file: the input TOML with only the fitted keys changed.
 
-The standard library reads TOML but does not write it, and the format-preserving writers
-(tomlkit) are not among flexkin's dependencies, so the few values are replaced in the text:
-each fitted key is found in its table (``[rod]``, the i-th ``[[leg]]``, ``[platform]``) and
-its value (a number or an array, possibly over several lines) is replaced; a key the table
-does not have yet (a leg's first ``offset``) is added after the table's last key.  Comments,
-order and layout stay.  The result is parsed again and compared with the expected content;
-if the edit could not be made in place (dotted keys, inline tables) the file is written from
-the parsed content instead, with a comment saying so.
+The standard library reads TOML but does not write it; tomlkit (the format-preserving TOML
+library of the Poetry project) edits the document in place, so comments, order and layout stay.
+Each fitted key is set in its table (``[rod]``, the i-th ``[[leg]]``, ``[platform]``); a key the
+table does not have yet (a leg's first ``offset``) is added to it.  The result is parsed again
+by :mod:`tomllib` and compared with the expected content.
 """
 
 from __future__ import annotations
 
 import copy
 import math
-import re
 import tomllib
 from typing import Any, Sequence
+
+import tomlkit
 
 from .params import Parameter
 
 __all__ = ["calibrated_toml", "planned_edits"]
-
-_HEADER = re.compile(r"^\s*(\[\[?)\s*([A-Za-z0-9_.\-\"' ]+?)\s*(\]\]?)\s*(#.*)?$")
-
-
-def _num(v: float) -> str:
-    return repr(float(v))  # the shortest text that reads back as the same double
-
-
-def _fmt(v: Any) -> str:
-    if isinstance(v, list):
-        return "[" + ", ".join(_fmt(x) for x in v) + "]"
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return _num(float(v))
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    raise TypeError(type(v))
 
 
 def planned_edits(raw: dict[str, Any], params: Sequence[Parameter], values_display: Sequence[float]
@@ -83,106 +63,16 @@ def _expected(raw: dict[str, Any], edits) -> dict[str, Any]:
     return data
 
 
-def _sections(lines: list[str]) -> list[tuple[tuple[str, int | None], int, int]]:
-    """(table id, first line, end line) of every table; the top level is ("", None)."""
-    out = []
-    counts: dict[str, int] = {}
-    cur: tuple[str, int | None] = ("", None)
-    start = 0
-    depth = 0
-    for n, line in enumerate(lines):
-        m = _HEADER.match(line) if depth == 0 else None
-        if m and m.group(1) in ("[", "[["):
-            out.append((cur, start, n))
-            name = m.group(2).strip()
-            if m.group(1) == "[[":
-                k = counts.get(name, 0)
-                counts[name] = k + 1
-                cur = (name, k)
-            else:
-                cur = (name, None)
-            start = n + 1
-        depth += _bracket_delta(line)
-    out.append((cur, start, len(lines)))
-    return out
-
-
-def _bracket_delta(line: str) -> int:
-    code = _code(line)
-    return code.count("[") - code.count("]")
-
-
-def _code(line: str) -> str:
-    """The line without its comment (no '#' inside the numeric values and arrays here)."""
-    out, q = [], None
-    for ch in line:
-        if q:
-            if ch == q:
-                q = None
-        elif ch in "\"'":
-            q = ch
-        elif ch == "#":
-            break
-        out.append(ch)
-    return "".join(out)
-
-
-def _edit_text(text: str, edits) -> str:
-    lines = text.splitlines()
+def _edit_document(text: str, edits) -> str:
+    doc = tomlkit.parse(text)
     for (table, idx), key, v in edits:
-        secs = _sections(lines)
-        sec = [s for s in secs if s[0] == (table, idx)]
-        if not sec:
-            raise LookupError(f"table {table}")
-        _, a, b = sec[0]
-        pat = re.compile(rf"^(\s*){re.escape(key)}(\s*=\s*)")
-        hit = None
-        for n in range(a, b):
-            if pat.match(lines[n]):
-                hit = n
-                break
-        if hit is None:
-            if v is None:
-                continue
-            last = a - 1
-            for n in range(a, b):
-                if _code(lines[n]).strip():
-                    last = n
-            while last + 1 < b and _bracket_delta("\n".join(lines[a:last + 1])) > 0:
-                last += 1
-            lines.insert(last + 1, f"{key} = {_fmt(v)}")
-            continue
-        # the value may continue over several lines (arrays)
-        end = hit
-        depth = _bracket_delta(lines[hit])
-        while depth > 0 and end + 1 < b:
-            end += 1
-            depth += _bracket_delta(lines[end])
-        comment = ""
-        last = lines[end]
-        c = _code(last)
-        if len(c) < len(last):
-            comment = "  " + last[len(c):].strip()
+        t = doc[table] if idx is None else doc[table][idx]
         if v is None:
-            del lines[hit:end + 1]
-            continue
-        m = pat.match(lines[hit])
-        lines[hit:end + 1] = [f"{m.group(1)}{key}{m.group(2)}{_fmt(v)}{comment}"]  # type: ignore[union-attr]
-    return "\n".join(lines) + ("\n" if text.endswith("\n") else "")
-
-
-def _serialize(data: dict[str, Any]) -> str:
-    out = []
-    for k, v in data.items():
-        if not isinstance(v, dict) and not (isinstance(v, list) and v and isinstance(v[0], dict)):
-            out.append(f"{k} = {_fmt(v)}")
-    for k, v in data.items():
-        if isinstance(v, dict):
-            out += ["", f"[{k}]"] + [f"{kk} = {_fmt(vv)}" for kk, vv in v.items()]
-        elif isinstance(v, list) and v and isinstance(v[0], dict):
-            for t in v:
-                out += ["", f"[[{k}]]"] + [f"{kk} = {_fmt(vv)}" for kk, vv in t.items()]
-    return "\n".join(out) + "\n"
+            if key in t:
+                del t[key]
+        else:
+            t[key] = v
+    return tomlkit.dumps(doc)
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -219,10 +109,8 @@ def calibrated_toml(text: str, raw: dict[str, Any], params: Sequence[Parameter],
     edits = planned_edits(raw, params, values_display)
     want = _expected(raw, edits)
     head = "".join(f"# {line}\n" for line in note.splitlines()) if note else ""
-    try:
-        new = _edit_text(text, edits)
-        if _same(tomllib.loads(new), want):
-            return head + new
-    except (LookupError, tomllib.TOMLDecodeError, TypeError):
-        pass
-    return head + "# (written from the parsed file: its layout could not be kept)\n" + _serialize(want)
+    new = _edit_document(text, edits)
+    got = tomllib.loads(new)
+    if not _same(got, want):  # pragma: no cover - tomlkit round-trips; this guards the planned edits
+        raise RuntimeError("the calibrated mechanism file does not parse to the fitted values")
+    return head + new
