@@ -572,6 +572,9 @@ def _run_dask(todo: list[DesignTask], finish: Callable[[DesignTask, dict[str, An
             try:
                 cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
                                        dashboard_address=None, silence_logs=logging.CRITICAL,
+                                       # no dashboard; the scheduler's small HTTP server on a free
+                                       # local port (its default 8787 may be taken: a warning)
+                                       scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
                                        preload=["flexkin.study.worker_setup"])
             except Exception as e:
                 raise StudyError(f"cannot start a local Dask cluster ({_one_line(e)}); a script that runs a study "
