@@ -265,8 +265,8 @@ def test_failing_design_is_a_row_with_its_error(tmp_path, capsys):
     rc = study_main(["study", str(study), "--out", str(tmp_path / "out"), "--scheduler", "synchronous", "--quiet",
                      "--no-figures"])
     captured = capsys.readouterr()
-    assert rc == 0
-    assert "1 row(s) failed" in captured.err
+    assert rc == 1  # a study with a failed row exits non-zero (issue 27, item 4)
+    assert "1 of 2 row(s) failed" in captured.err and "coincides" in captured.err
     rows = read_table(tmp_path / "out")
     assert rows[0]["error"] == "" and rows[0]["workspace_area"] > 0
     assert rows[1]["error"].startswith("MechanismError:") and "coincides with leg[1].origin" in rows[1]["error"]

@@ -37,9 +37,8 @@ class _Parser(argparse.ArgumentParser):
         # negative numbers in exponent notation (-1e-3) are values, not options
         self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
-    def error(self, message: str) -> None:  # argparse prints usage + message, exit 2
-        self.print_usage(sys.stderr)
-        raise CLIError(f"{self.prog}: {message}")
+    def error(self, message: str) -> None:  # one line on stderr and exit 2, no usage block
+        raise CLIError(f"{self.prog}: {' '.join(message.split())} (see '{self.prog} --help')")
 
 
 def _finite(name: str):
@@ -75,6 +74,13 @@ def _mode(text: str) -> int:
     if not 1 <= q <= 6:
         raise argparse.ArgumentTypeError(f"--max-mode: must be between 1 and 6, got {q}")
     return q
+
+
+def _add_time_budget(k) -> None:
+    k.add_argument("--time-budget", type=_positive("--time-budget"), metavar="SECONDS",
+                   help="seconds for the whole computation (search, refinement, stability, Jacobians, verification; "
+                        "loading the compiled kernels at start-up not counted); when they run out the result holds "
+                        "what was finished and says complete = false (default: no limit)")
 
 
 def _add_common_kinematics(k, name: str) -> None:
@@ -123,9 +129,7 @@ def _build_parser() -> argparse.ArgumentParser:
         else:
             k.add_argument("--inputs", nargs=3, type=_finite("--inputs"), metavar=("U1", "U2", "U3"), required=True,
                            help="actuator inputs: m for prismatic and length legs, deg for revolute legs")
-            k.add_argument("--time-budget", type=_positive("--time-budget"), metavar="SECONDS",
-                           help="stop the global search early enough to finish in about SECONDS; the result then "
-                                "says complete = false (default: no limit)")
+        _add_time_budget(k)
         _add_common_kinematics(k, name)
         k.add_argument("--json", action="store_true", help="print the SPEC §4 JSON object")
         k.add_argument("--feasibility", action="store_true",
@@ -183,6 +187,7 @@ def _build_parser() -> argparse.ArgumentParser:
     pa.add_argument("--plot", metavar="FILE", help="inputs, singularity functions, Jacobian determinants and "
                                                    "stability margin vs t")
     pa.add_argument("--shapes", metavar="FILE", help="rod shapes at every sample: .csv or .npz")
+    _add_time_budget(pa)
     pa.add_argument("--quiet", "-q", action="store_true", help="no progress display on stderr")
 
     wk = sub.add_parser("workspace", help="constant-orientation workspace by wave propagation (paper Fig. 17)")
@@ -214,6 +219,7 @@ def _build_parser() -> argparse.ArgumentParser:
     wk.add_argument("--plot", metavar="FILE",
                     help="figure like Fig. 17: one panel per aspect and orientation, same axes and colours "
                          "(pages of 20: FILE, FILE_2, ...)")
+    _add_time_budget(wk)
     wk.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     from .explore.cli import add_explore_parser
     from .study.cli import add_study_parser
@@ -280,11 +286,17 @@ def _cmd_workspace(a) -> int:
     from .solve.workspace import default_grid
 
     mech = _load_mech(a.mechanism)
-    default_grid(mech, a.step, a.bounds)  # validate before starting any work
+    try:  # validate before starting any work
+        default_grid(mech, a.step, a.bounds)
+    except ValueError as e:
+        opt = "--step" if str(e).startswith("step") else "--bounds"
+        raise CLIError(f"flexkin workspace: {opt}: {e}") from None
     kw = dict(seed=tuple(a.seed), load=a.load, step=a.step, bounds=a.bounds, max_mode=a.max_mode,
               all_aspects=not a.first_aspect, constrained=a.constrained, collisions=a.collisions)
     thetas = [math.radians(t) for t in a.theta]
     jobs = min(len(thetas), a.jobs or os.cpu_count() or 1)
+    if a.time_budget is not None:  # the orientations run `jobs` at a time: each gets its share
+        kw["time_budget"] = a.time_budget / math.ceil(len(thetas) / jobs)
     show = _progress(a)
     if jobs > 1:
         from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -311,7 +323,7 @@ def _cmd_workspace(a) -> int:
         out = []
         for ws in results:
             out.append({"theta": float(math.degrees(ws.theta)), "step": ws.step, "seed": list(ws.seed),
-                        "elapsed": ws.elapsed, "message": ws.message, "region": ws.region,
+                        "elapsed": ws.elapsed, "complete": ws.complete, "message": ws.message, "region": ws.region,
                         "constraints": list(ws.constraints), "constrained": ws.constrained, "grown": ws.grown,
                         "aspects": [{"seeds": [s + 1 for s in mp.seeds], "cells": mp.area_cells,
                                      "area": mp.area_cells * ws.step**2,
@@ -378,7 +390,8 @@ def _cmd_path(a) -> int:
     start = (a.start[0], a.start[1], math.radians(a.start[2]))
     end = (a.end[0], a.end[1], math.radians(a.end[2]))
     with Ticker(f"flexkin path: {a.steps} steps", enabled=_progress(a)):
-        res = follow_path(mech, start, end, steps=a.steps, load=a.load, solution=a.solution, max_mode=a.max_mode)
+        res = follow_path(mech, start, end, steps=a.steps, load=a.load, solution=a.solution, max_mode=a.max_mode,
+                          time_budget=a.time_budget, feasibility=True)
         d = res.to_dict(feasibility=True)
     if a.json:
         print(_dump(d))
@@ -534,17 +547,20 @@ def _kinematics(a, mech):
 
         pose = (a.pose[0], a.pose[1], math.radians(a.pose[2]))
         with Ticker("flexkin ik: all equilibria", enabled=_progress(a)):
-            res = ik(mech, pose, load=a.load, max_mode=a.max_mode)
+            res = ik(mech, pose, load=a.load, max_mode=a.max_mode, time_budget=getattr(a, "time_budget", None))
         what = f"inverse kinematics at pose ({a.pose[0]:g} m, {a.pose[1]:g} m, {a.pose[2]:g} deg)"
         return res, what
     from .mechanism.plausibility import revolute_inputs_look_like_radians
     from .solve.fk import fk
 
     note = revolute_inputs_look_like_radians(mech, a.inputs)
-    if note:
-        from .errors import FlexkinWarning
+    from .errors import FlexkinWarning
 
+    if note:
         warnings.warn(note, FlexkinWarning, stacklevel=2)
+    for i, (v, leg) in enumerate(zip(a.inputs, mech.legs)):
+        if leg.actuation == "revolute":
+            _angle_arg(v, f"--inputs U{i + 1}")
     u = [float(leg.from_display(v)) for v, leg in zip(a.inputs, mech.legs)]
     with Ticker("flexkin fk: searching all equilibria", enabled=_progress(a)):
         res = fk(mech, u, load=a.load, max_mode=a.max_mode, time_budget=getattr(a, "time_budget", None))
@@ -730,6 +746,37 @@ def _check_outputs(a) -> None:
             raise CLIError(f"flexkin: {flag} {path!r}: the directory {parent!r} is not writable")
 
 
+def _angle_arg(value: float, what: str, note: bool = True) -> None:
+    """An angle given in degrees on the command line: beyond the supported range a usage error
+    naming the option; with ``note``, more than a full turn a one-line warning."""
+    from .core.validation import angle_note, check_angle_deg
+
+    try:
+        check_angle_deg(value, what)
+    except ValueError as e:
+        raise CLIError(f"flexkin: {e}") from None
+    text = angle_note(value, what) if note else None
+    if text:
+        from .errors import FlexkinWarning
+
+        warnings.warn(text, FlexkinWarning, stacklevel=2)
+
+
+def _check_angles(a) -> None:
+    """Every angle option of ``a`` (degrees): see :func:`_angle_arg`; revolute inputs are checked
+    where the mechanism is known.  The ends of a path may be several turns apart (no warning)."""
+    if getattr(a, "pose", None) is not None:
+        _angle_arg(a.pose[2], "--pose THETA")
+    for opt in ("start", "end"):
+        if getattr(a, opt, None) is not None:
+            _angle_arg(getattr(a, opt)[2], ("--from" if opt == "start" else "--to") + " THETA", note=False)
+    for t in getattr(a, "theta", None) or ():
+        _angle_arg(t, "--theta")
+    for opt in ("tip_angle", "clamp_angle"):
+        if getattr(a, opt, None) is not None:
+            _angle_arg(getattr(a, opt), "--" + opt.replace("_", "-"))
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """Warnings as one line on stderr: ``flexkin: warning: <text>``."""
     text = " ".join(str(message).split())
@@ -759,6 +806,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             a = parser.parse_args(argv)
             _check_outputs(a)
+            _check_angles(a)
             handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics, "fk": _cmd_kinematics,
                        "path": _cmd_path, "workspace": _cmd_workspace, "reproduce": _cmd_reproduce,
                        "study": _cmd_study, "explore": _cmd_explore, "refine": _cmd_refine,

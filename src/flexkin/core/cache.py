@@ -4,7 +4,8 @@ An entry is an ``.npz`` file named by the entry's name and a version key (a hash
 arguments, the flexkin version and whatever the caller includes, e.g. a fingerprint of the
 code that builds it).  Reading never trusts the file blindly: a missing, stale (other key),
 truncated or otherwise unreadable file is rebuilt; a cache directory that cannot be written
-leaves the arrays in memory only.  Nothing is ever shipped prebuilt.
+(read-only, full) leaves the arrays in memory only, with one warning per process, and never a
+temporary file behind.  Nothing is ever shipped prebuilt.
 
 The directory is ``<user cache dir>/flexkin/arrays`` (platformdirs; ``FLEXKIN_CACHE_DIR``
 overrides the base, see :func:`flexkin.core.jit.cache_base`).
@@ -62,13 +63,35 @@ def cached_arrays(name: str, parts: tuple, build: Callable[[], dict[str, NDArray
     except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile):
         pass  # missing, stale or corrupt: rebuild
     arrays = build()
+    _store(path, key, arrays)
+    return arrays
+
+
+#: directories whose write failure was already reported (one warning per process and directory)
+_WARNED: set[str] = set()
+
+
+def _store(path: Path, key: str, arrays: dict[str, NDArray]) -> None:
+    """Write an entry atomically; on failure warn (once per directory) and leave nothing behind."""
+    tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{name}-", suffix=".npz")
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}-", suffix=".npz")
         with os.fdopen(fd, "wb") as fh:
             np.savez(fh, __key__=np.array(key), **arrays)
         os.replace(tmp, path)  # atomic: readers never see a half-written file
+        tmp = None
     except OSError as e:
-        warnings.warn(f"flexkin: cannot write the cache entry {path} ({e.strerror or e}); kept in memory only",
-                      RuntimeWarning, stacklevel=2)
-    return arrays
+        if str(path.parent) not in _WARNED:
+            _WARNED.add(str(path.parent))
+            from ..errors import FlexkinWarning
+
+            warnings.warn(f"cannot write to the array cache {path.parent} ({e.strerror or e}): atlases are kept in "
+                          "memory only and built again in every process (set FLEXKIN_CACHE_DIR to a writable "
+                          "directory)", FlexkinWarning, stacklevel=3)
+    finally:
+        if tmp is not None:  # a failed write (disk full, ...) leaves no temporary file behind
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass

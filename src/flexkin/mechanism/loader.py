@@ -59,6 +59,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from flexkin.core.validation import check_angle_deg, short_text
 from flexkin.errors import FlexkinWarning, MechanismError
 from flexkin.mechanism.joints import JOINTS
 from flexkin.mechanism.plausibility import check_mechanism_data
@@ -108,11 +109,7 @@ class _KeyProblem(Exception):
 
 # ---- small typed accessors -----------------------------------------------------------
 def _show(value: Any) -> str:
-    try:
-        s = repr(value)
-    except (ValueError, RecursionError):  # integers with thousands of digits, deep nesting
-        return f"<{type(value).__name__} too large to show>"
-    return s if len(s) <= 60 else s[:57] + "..."
+    return short_text(value)
 
 
 def _type_name(value: Any) -> str:
@@ -144,13 +141,21 @@ def _edit_distance(a: str, b: str) -> int:
     return prev[-1]
 
 
+#: keys longer than this are not compared with the allowed ones (no allowed key is anywhere
+#: near; a megabyte-long key would take a minute of edit distances)
+_SUGGEST_MAX_LEN = 64
+
+
 def suggest_key(key: str, allowed: tuple[str, ...]) -> str | None:
     """The allowed key ``key`` is most likely a misspelling of, or None.
 
     Case is ignored; a key within one edit (two for keys of five or more characters) of an
     allowed key it shares a letter with, or similar to it by difflib's ratio (>= 0.6, as
-    :func:`difflib.get_close_matches`), is a candidate; the closest candidate wins.
+    :func:`difflib.get_close_matches`), is a candidate; the closest candidate wins.  Keys
+    longer than :data:`_SUGGEST_MAX_LEN` characters get no suggestion.
     """
+    if len(key) > _SUGGEST_MAX_LEN:
+        return None
     k = key.lower()
     best: tuple[int, float, str] | None = None
     for a in allowed:
@@ -165,8 +170,11 @@ def suggest_key(key: str, allowed: tuple[str, ...]) -> str | None:
 
 
 def _key_text(key: Any) -> str:
-    """A key as written in a key path: bare if it is a plain TOML bare key, quoted otherwise."""
+    """A key as written in a key path: bare if it is a plain TOML bare key, quoted otherwise;
+    a long key is cut (its length is given)."""
     key = str(key)
+    if len(key) > _SUGGEST_MAX_LEN:
+        return short_text(key)
     if key and all(c.isascii() and (c.isalnum() or c in "_-") for c in key):
         return key
     return repr(key)
@@ -205,6 +213,15 @@ def _number(value: Any, path: str) -> float:
     if not math.isfinite(v):
         raise _KeyProblem(path, f"expected a finite number, got {v!r}")
     return v
+
+
+def _angle(value: Any, path: str) -> float:
+    """An angle in degrees, within the supported range (:data:`~flexkin.core.validation.ANGLE_LIMIT_DEG`)."""
+    v = _number(value, path)
+    try:
+        return check_angle_deg(v, "")
+    except ValueError as e:
+        raise _KeyProblem(path, str(e)) from None
 
 
 def _positive(value: Any, path: str, unit: str, limits: tuple[float, float] | None = None) -> float:
@@ -357,17 +374,18 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float], material_defaults: 
     if not isinstance(act, str):
         raise _KeyProblem(f"{path}.actuation", f"expected a string, got {_type_name(act)} {_show(act)}")
     if act not in ACTUATIONS:
-        close = difflib.get_close_matches(act.lower(), ACTUATIONS, n=1, cutoff=0.5)
+        close = difflib.get_close_matches(act.lower(), ACTUATIONS, n=1, cutoff=0.5) \
+            if len(act) <= _SUGGEST_MAX_LEN else []
         hint = f"; did you mean {close[0]!r}?" if close else ""
         raise _KeyProblem(
             f"{path}.actuation",
-            f"unknown actuation {act!r} (expected one of {', '.join(map(repr, ACTUATIONS))}{hint})",
+            f"unknown actuation {_show(act)} (expected one of {', '.join(map(repr, ACTUATIONS))}{hint})",
         )
     origin = _pair(_require(table, "origin", path, "[x, y] in m"), f"{path}.origin", bound=LENGTH_LIMITS[1])
     if act == "revolute":
-        angle_deg = _number(table["angle"], f"{path}.angle") if "angle" in table else 0.0
+        angle_deg = _angle(table["angle"], f"{path}.angle") if "angle" in table else 0.0
     else:
-        angle_deg = _number(
+        angle_deg = _angle(
             _require(table, "angle", path, f"guide direction in degrees, required for {act} legs"),
             f"{path}.angle",
         )
@@ -375,6 +393,8 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float], material_defaults: 
     if "range" in table:
         lo, hi = _pair(table["range"], f"{path}.range", "[lo, hi]",
                        bound=None if act == "revolute" else LENGTH_LIMITS[1])
+        if act == "revolute":
+            lo, hi = _angle(lo, f"{path}.range"), _angle(hi, f"{path}.range")
         unit = "deg" if act == "revolute" else "m"
         if not lo < hi:
             raise _KeyProblem(f"{path}.range", f"lower bound must be < upper bound, got [{lo:g}, {hi:g}] {unit}")
@@ -398,16 +418,17 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float], material_defaults: 
     if not isinstance(joint, str):
         raise _KeyProblem(f"{path}.joint", f"expected a string, got {_type_name(joint)} {_show(joint)}")
     if joint not in JOINTS:
-        close = difflib.get_close_matches(joint.lower(), JOINTS, n=1, cutoff=0.5)
+        close = difflib.get_close_matches(joint.lower(), JOINTS, n=1, cutoff=0.5) \
+            if len(joint) <= _SUGGEST_MAX_LEN else []
         hint = f"; did you mean {close[0]!r}?" if close else ""
         raise _KeyProblem(f"{path}.joint",
-                          f"unknown joint {joint!r} (expected one of {', '.join(map(repr, JOINTS))}{hint})")
+                          f"unknown joint {_show(joint)} (expected one of {', '.join(map(repr, JOINTS))}{hint})")
     tip_angle = 0.0
     if JOINTS[joint].carries_moment:
-        tip_angle = _number(_require(table, "tip_angle", path, "the rod's tangent at the platform point, in degrees "
-                                     "in the platform frame, required for a clamped joint"), f"{path}.tip_angle")
+        tip_angle = _angle(_require(table, "tip_angle", path, "the rod's tangent at the platform point, in degrees "
+                                    "in the platform frame, required for a clamped joint"), f"{path}.tip_angle")
     elif "tip_angle" in table:
-        _number(table["tip_angle"], f"{path}.tip_angle")
+        _angle(table["tip_angle"], f"{path}.tip_angle")
         warnings.warn(f"{path}.tip_angle: ignored: a {joint} joint leaves the rod's tip free to turn "
                       f"(tip_angle applies to joint = \"clamped\")", FlexkinWarning, stacklevel=4)
     return Leg(actuation=act, origin=origin, angle=math.radians(angle_deg), rod=rod, range=rng,  # type: ignore[arg-type]

@@ -640,8 +640,8 @@ def _coincident_fixed_origins(legs: tuple[Leg, ...]) -> str | None:
     """Message if two revolute/length legs share their origin, else None."""
     pts = np.array([leg.origin for leg in legs], dtype=float)
     spread = max(float(np.hypot(*(pts[i] - pts[j]))) for i in range(3) for j in range(i + 1, 3))
-    scale = max([spread] + [leg.rod.length or 0.0 for leg in legs])
-    tol = 1e-9 * scale
+    # relative to the base's own size (the rods' lengths do not make distinct points coincide)
+    tol = 1e-9 * spread
     for i in range(3):
         for j in range(i + 1, 3):
             if legs[i].actuation == "prismatic" or legs[j].actuation == "prismatic":

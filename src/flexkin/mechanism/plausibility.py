@@ -12,6 +12,11 @@ possible but almost certainly a unit mistake is accepted with a
 * a ``density`` far from any solid (``7.85``: g/cm^3 written for kg/m^3);
 * a revolute leg's ``range`` whose bounds all lie within +-2 pi (radians written for degrees);
 * an ``angle`` key on a revolute leg (it has no effect there);
+* an ``angle`` or ``tip_angle`` of more than a full turn;
+* leg origins too far apart for the rods and the platform to meet anywhere, or spread over
+  far more than the rods can span (millimetres written for metres);
+* rods many orders of magnitude longer than the base and the platform (the platform is then a
+  point to the solvers' resolution);
 * revolute actuator inputs on the command line that look like radians
   (:func:`revolute_inputs_look_like_radians`).
 
@@ -24,6 +29,8 @@ from __future__ import annotations
 import math
 from typing import Any, Sequence
 
+from flexkin.core.validation import angle_note
+
 __all__ = [
     "check_mechanism_data",
     "revolute_inputs_look_like_radians",
@@ -31,6 +38,8 @@ __all__ = [
     "E_RANGE",
     "G_RANGE",
     "DENSITY_RANGE",
+    "SPREAD_RATIO",
+    "PROPORTION_RATIO",
 ]
 
 #: largest plausible radius / length of a rod modelled as a Kirchhoff rod (length/diameter >= 10)
@@ -42,6 +51,11 @@ G_RANGE = (3e4, 6e11)
 #: plausible density of a solid rod (kg/m^3): from foams/wood (~100) to osmium (~22600)
 DENSITY_RANGE = (100.0, 25000.0)
 _TWO_PI = 2.0 * math.pi
+#: leg origins spread over more than this many times what the rods and the platform can span
+#: are implausible (a unit mistake: millimetres for metres gives 1000)
+SPREAD_RATIO = 100.0
+#: rods longer than this many times the base and the platform are implausible
+PROPORTION_RATIO = 1e6
 
 
 def _num(v: Any) -> float | None:
@@ -161,7 +175,103 @@ def check_mechanism_data(data: dict[str, Any], mech: Any) -> list[str]:
         if "angle" in raw:
             out.append(f"leg[{i + 1}].angle: has no effect on a revolute leg (its input is the clamp angle); "
                        "remove the key")
+    # angles of more than a full turn
+    for i, raw in enumerate(legs_raw):
+        if not isinstance(raw, dict):
+            continue
+        for key in ("angle", "tip_angle"):
+            v = _num(raw.get(key))
+            note = None if v is None else angle_note(v, key)
+            if note:
+                out.append(f"leg[{i + 1}].{key}: {note}")
+    note = _origins_too_far(mech)
+    if note:
+        out.append(note)
+    note = _proportions(mech)
+    if note:
+        out.append(note)
     return out
+
+
+def _clamp_set(leg: Any) -> tuple[tuple[float, float], tuple[float, float], float] | None:
+    """Where a leg's clamp can be and how far its rod reaches: ``(A0, A1, reach)`` with the clamp
+    on the segment ``A0 A1`` (a point for revolute and length legs); None when unbounded (a
+    prismatic leg without a range, a length leg without one)."""
+    o = (float(leg.origin[0]), float(leg.origin[1]))
+    if leg.actuation == "revolute":
+        return o, o, float(leg.rod.length)
+    if leg.actuation == "length":
+        return (o, o, float(leg.range[1])) if leg.range is not None else None
+    if leg.range is None:
+        return None
+    d = (math.cos(leg.angle), math.sin(leg.angle))
+    lo, hi = leg.range
+    return (o[0] + lo * d[0], o[1] + lo * d[1]), (o[0] + hi * d[0], o[1] + hi * d[1]), float(leg.rod.length)
+
+
+def _point_segment(p: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    n = dx * dx + dy * dy
+    t = 0.0 if n == 0.0 else min(max(((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / n, 0.0), 1.0)
+    return math.hypot(p[0] - a[0] - t * dx, p[1] - a[1] - t * dy)
+
+
+def _segments(a0, a1, b0, b1) -> float:
+    """Distance between the segments ``a0 a1`` and ``b0 b1`` (0 when they cross)."""
+    def orient(p, q, r):
+        return (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
+
+    if a0 != a1 and b0 != b1:
+        d1, d2 = orient(a0, a1, b0), orient(a0, a1, b1)
+        d3, d4 = orient(b0, b1, a0), orient(b0, b1, a1)
+        if d1 * d2 < 0 and d3 * d4 < 0:
+            return 0.0
+    return min(_point_segment(a0, b0, b1), _point_segment(a1, b0, b1), _point_segment(b0, a0, a1),
+               _point_segment(b1, a0, a1))
+
+
+def _origins_too_far(mech: Any) -> str | None:
+    """A note when the legs' clamps are too far apart for the rods and the platform to meet
+    (no pose can be assembled), or the origins spread over far more than they can span."""
+    b = mech.platform.b
+    sets = [_clamp_set(leg) for leg in mech.legs]
+    unit = "the coordinates are in m: were they given in mm?"
+    for i in range(3):
+        for j in range(i + 1, 3):
+            if sets[i] is None or sets[j] is None:
+                continue
+            gap = _segments(sets[i][0], sets[i][1], sets[j][0], sets[j][1])
+            span = sets[i][2] + sets[j][2] + math.hypot(*(b[i] - b[j]))
+            if gap > span:
+                return (f"leg[{i + 1}].origin, leg[{j + 1}].origin: the clamps of legs {i + 1} and {j + 1} are at "
+                        f"least {gap:.4g} m apart, more than their rods and the platform side can span "
+                        f"({span:.4g} m): no pose can be assembled" + (f"; {unit}" if gap > 10 * span else ""))
+    o = [(float(leg.origin[0]), float(leg.origin[1])) for leg in mech.legs]
+    spread = max(math.hypot(o[i][0] - o[j][0], o[i][1] - o[j][1]) for i in range(3) for j in range(i + 1, 3))
+    reach = [s[2] for s in sets if s is not None] + [float(leg.rod.length) for leg in mech.legs
+                                                     if leg.actuation == "prismatic"]
+    if not reach:
+        return None
+    span = 2.0 * max(reach) + mech.platform.size
+    if spread > SPREAD_RATIO * span:
+        return (f"leg[*].origin: the leg origins are spread over {spread:.4g} m, {spread / span:.3g} times what "
+                f"two rods and the platform can span ({span:.4g} m); {unit}")
+    return None
+
+
+def _proportions(mech: Any) -> str | None:
+    """A note when the rods are many orders of magnitude longer than the base and the platform."""
+    L = max([float(leg.rod.length) for leg in mech.legs if leg.rod.length is not None]
+            + [float(leg.range[1]) for leg in mech.legs if leg.actuation == "length" and leg.range is not None]
+            + [0.0])
+    o = [(float(leg.origin[0]), float(leg.origin[1])) for leg in mech.legs]
+    spread = max(math.hypot(o[i][0] - o[j][0], o[i][1] - o[j][1]) for i in range(3) for j in range(i + 1, 3))
+    size = max(spread, mech.platform.size)
+    if L > PROPORTION_RATIO * size:
+        return (f"rod.length: the rods ({L:.4g} m) are {L / size:.3g} times longer than the base and the platform "
+                f"({size:.4g} m): the platform is a point to the solvers' resolution (was the length meant in "
+                "another unit?)")
+    return None
 
 
 def revolute_inputs_look_like_radians(mech: Any, inputs_display: Sequence[float]) -> str | None:

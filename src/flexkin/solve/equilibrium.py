@@ -22,12 +22,16 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.budget import Deadline, Rate
 from ..core.jit import njit
 
 __all__ = ["SegmentTree", "equilibrium_triples"]
 
-#: node triples examined per compiled slice between two deadline checks
+#: node triples examined at most per compiled slice between two deadline checks (with a
+#: budget the slices are sized from the measured rate, :mod:`flexkin.core.budget`)
 SLICE = 200_000
+#: seconds per node triple before anything is measured (a guess on the safe side)
+NODE_COST = 2e-7
 
 
 @njit(cache=True)
@@ -190,7 +194,7 @@ def _search(lo0, hi0, lo1, hi1, lo2, hi2, sizes, p0, p1, target, stack, sp, budg
 
 
 def equilibrium_triples(p0s: list[NDArray], p1s: list[NDArray], target: NDArray[np.float64],
-                        max_nodes: int = 50_000_000, deadline: float | None = None
+                        max_nodes: int = 50_000_000, deadline: Deadline | None = None, leaf_cost: float = 0.0
                         ) -> tuple[NDArray[np.int64], NDArray[np.float64], bool]:
     """Segment triples and parameters where ``sum_i w_i(s_i) = target``.
 
@@ -203,8 +207,11 @@ def equilibrium_triples(p0s: list[NDArray], p1s: list[NDArray], target: NDArray[
     max_nodes : int
         Budget of node triples examined; when it runs out the search stops and the result is
         flagged incomplete.
-    deadline : float, optional
-        ``time.perf_counter()`` value after which the search stops (incomplete).
+    deadline : Deadline, optional
+        The caller's time budget: the search stops (incomplete) when the time left would not
+        cover the refinement of the leaves found so far.
+    leaf_cost : float
+        Seconds the caller needs per leaf after the search (the refinement it reserves).
 
     Returns
     -------
@@ -231,12 +238,17 @@ def equilibrium_triples(p0s: list[NDArray], p1s: list[NDArray], target: NDArray[
     params = np.empty((256, 3))
     sp, nleaf, evaluated = 1, 0, 0
     complete = True
+    dl = deadline if deadline is not None else Deadline()
+    rate = Rate(NODE_COST)
     while sp:
-        if evaluated >= max_nodes or (deadline is not None and time.perf_counter() > deadline):
+        if evaluated >= max_nodes or dl.expired(leaf_cost * nleaf):
             complete = False
             break
+        n = min(rate.units_for(dl.slice_seconds(), 1000, SLICE), max_nodes - evaluated)
+        t = time.perf_counter()
         sp, nleaf, ex, leaves, params, stack = _search(
             trees[0].lo, trees[0].hi, trees[1].lo, trees[1].hi, trees[2].lo, trees[2].hi, sizes, p0, p1, target,
-            stack, sp, min(SLICE, max_nodes - evaluated), leaves, params, nleaf)
+            stack, sp, n, leaves, params, nleaf)
+        rate.add(ex, time.perf_counter() - t)
         evaluated += ex
     return leaves[:nleaf].copy(), params[:nleaf].copy(), complete

@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import numpy as np
@@ -18,6 +19,7 @@ from numpy.typing import NDArray
 from ..analysis.jacobian import kinematic_jacobians
 from ..analysis.stability import mechanism_stability
 from ..analysis.verify import verify_solutions
+from ..core.budget import Deadline, Rate, timed_slices
 from ..core.geometry2d import wrap_to_pi
 from ..results import Solution
 from ..rod.atlas import in_scope
@@ -157,10 +159,17 @@ def distinct(system: System, X: NDArray, charts: NDArray, residual: NDArray,
     return np.array(sorted(keep), dtype=np.int64)
 
 
+#: seconds to build one solution (stability, Jacobians, verification) before anything is measured
+BUILD_COST = 3e-3
+
+
 def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual: NDArray, max_mode: int,
-                     load: NDArray, diag: dict[str, Any] | None = None, fixed: str = "pose") -> list[Solution]:
+                     load: NDArray, diag: dict[str, Any] | None = None, fixed: str = "pose",
+                     deadline: Deadline | None = None) -> list[Solution]:
     """Reported solutions from refined candidates (module docstring); ``fixed`` is what the
-    analysis held (``"pose"`` for IK, ``"inputs"`` for FK): its Newton matrix gives ``condition``."""
+    analysis held (``"pose"`` for IK, ``"inputs"`` for FK): its Newton matrix gives ``condition``.
+    With a ``deadline`` the solutions are built in slices while the time allows; those left
+    unbuilt are dropped and the deadline is :attr:`~flexkin.core.budget.Deadline.hit`."""
     X = canonical(system, X)
     modes = rod_modes(system, X, charts)
     ok = np.all(modes <= max_mode, axis=1) & np.all(np.isfinite(X), axis=1)
@@ -169,7 +178,14 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
     if len(X) == 0:
         return []
     idx = distinct(system, X, charts, residual, diag)
-    sols = build_solutions(system, mech, X[idx], charts[idx], load, residual[idx], modes[idx], fixed)
+    dl = deadline if deadline is not None else Deadline()
+    rate = Rate(BUILD_COST)
+    sols = []
+    for lo, hi in timed_slices(len(idx), dl, rate, first=1):  # one first: a solution can cost 0.3 s
+        t = time.perf_counter()
+        k = idx[lo:hi]
+        sols += build_solutions(system, mech, X[k], charts[k], load, residual[k], modes[k], fixed)
+        rate.add(hi - lo, time.perf_counter() - t)
     escale = system.F_ref * system.L_ref
     sols.sort(key=lambda s: (s.modes, round(s.energy / escale, 9), tuple(s.inputs), tuple(s.pose)))
     return [_with_id(s, k + 1) for k, s in enumerate(sols)]

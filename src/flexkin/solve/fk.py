@@ -18,20 +18,21 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.validation import as_triple, check_budget, check_max_mode
+from ..core.budget import Deadline
+from ..core.validation import as_triple, check_max_mode
 from ..results import FKDiagnostics, KinematicsResult, Solution
 from ..system import System
-from .corrector import newton
 from .finish import finish_solutions
 from .fk_lattice import lattice_starts
-from .fk_search import MAX_NODES, fk_starts
+from .fk_search import fk_starts
 from .ik import RESIDUAL_TOL, as_load
+from .sliced import newton_within
 
 __all__ = ["fk"]
 
 
 def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *, stride: int = 4,
-       stable_only: bool = False, time_budget: float | None = None) -> KinematicsResult:
+       stable_only: bool = False, time_budget: float | Deadline | None = None) -> KinematicsResult:
     """All equilibrium poses of ``mech`` for actuator ``inputs`` under ``load`` (paper §5).
 
     Parameters
@@ -49,10 +50,12 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         Coarsening of the atlas cells used by the search (1 = finest, slowest).
     stable_only : bool
         Keep only the stable equilibria (default: all, stable and unstable).
-    time_budget : float, optional
-        Seconds for the whole FK: the global search stops early enough for its candidates to
-        be refined in time; the result then says ``complete = False`` (and so it does when
-        the search exhausts its node budget).
+    time_budget : float or Deadline, optional
+        Seconds for the whole FK (start-up excluded; see :mod:`flexkin.core.budget`): the
+        global search stops early enough for its candidates to be refined and analysed in
+        time; when the time runs out the result holds what was finished and says
+        ``complete = False`` (and so it does when the search exhausts its node budget).  A
+        :class:`~flexkin.core.budget.Deadline` shares a caller's clock.
 
     Returns
     -------
@@ -65,7 +68,7 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     w = as_load(mech, load)
     for i, leg in enumerate(mech.legs):
         leg.actuator.check_input(float(u[i]), i)
-    deadline = None if time_budget is None else t0 + check_budget(time_budget)
+    dl = Deadline.of(time_budget)
     system = System.from_mechanism(mech)
     given, wl = tuple(float(v) for v in u), tuple(float(v) for v in w)
     diag: dict[str, Any] = {}
@@ -74,22 +77,24 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         return KinematicsResult((), True, msg, time.perf_counter() - t0, FKDiagnostics(), "fk", mech, given, wl,
                                 max_mode)
     if np.any(system.clamped):  # 9-D interval bounds exclude too little: the pose lattice
-        X, complete, stats = lattice_starts(system, u, w, max_mode, deadline=deadline)
+        X, complete, stats = lattice_starts(system, u, w, max_mode, deadline=dl.end if dl.limited else None)
         nodes = stats.combinations
         diag["lattice_h"], diag["lattice_n_theta"] = stats.h, stats.n_theta
     else:
-        X, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=deadline)
+        X, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=dl.for_search())
     diag["candidates"] = int(len(X))
     diag["search_complete"] = complete
     diag["nodes"] = int(nodes)
-    sols = refine_fk(system, mech, X, system.default_charts(len(X)), w, max_mode, diag)
+    sols = refine_fk(system, mech, X, system.default_charts(len(X)), w, max_mode, diag, deadline=dl)
+    if dl.limited and not complete and "lattice_h" in diag:
+        dl.hit = True  # the lattice search stops only at the deadline
+    complete = complete and not dl.hit
     msg = "" if sols else "no equilibrium pose found for these inputs and load"
     if diag.get("continuum"):
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
                "the least loaded one is reported")
     if not complete:
-        why = ("time budget exhausted" if time_budget is not None and (nodes < MAX_NODES or "lattice_h" in diag)
-               else f"search budget exhausted ({nodes} node triples examined)")
+        why = dl.message() if dl.hit else f"search budget exhausted ({nodes} node triples examined)"
         msg = f"{why}: the global search did not finish, the solution list may be incomplete" + \
             ("" if sols else "; " + msg)
     res = KinematicsResult(tuple(sols), complete, msg, time.perf_counter() - t0, FKDiagnostics(**diag), "fk", mech,
@@ -98,14 +103,15 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
 
 
 def refine_fk(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
-              diag: dict[str, Any] | None = None) -> list[Solution]:
-    """Newton-refine FK candidates ``X`` (inputs held) and build the solutions."""
-    res = newton(system, X, charts, load, "inputs")
+              diag: dict[str, Any] | None = None, deadline: Deadline | None = None) -> list[Solution]:
+    """Newton-refine FK candidates ``X`` (inputs held) and build the solutions (within the
+    ``deadline``, if given: what it leaves no time for is dropped and the deadline is hit)."""
+    res = newton_within(system, X, charts, load, "inputs", deadline)
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
     return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
-                            "inputs")
+                            "inputs", deadline=deadline)
 
 
 def _assembly_obstruction(m: System, u: NDArray) -> str:

@@ -29,6 +29,7 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.budget import Deadline, Rate
 from ..core.jit import njit
 from ..core.linalg import solve_into
 from ..rod.cell_tree import clamped_tree, pinned_tree
@@ -366,22 +367,26 @@ def _trees(mech, max_mode: int, stride: int):
 #: ~0.6 ms on the unit 3-PF (pinned starts are ~20x cheaper); used to leave the refinement its
 #: share of a time budget
 REFINE_COST = 6e-4
-#: node triples the search examines at most
+#: node triples examined at most
 MAX_NODES = 50_000_000
+#: node triples per compiled slice at most (with a budget, slices are sized from the measured rate)
+SLICE = 200_000
+#: seconds per node triple before anything is measured (a guess on the safe side)
+NODE_COST = 2e-6
 
 
 def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: int, *, stride: int = 4,
               eps_tip: float = 0.01, eps_force: float = 0.05, eps_ang: float = 0.05, reach: float = 1.0,
-              max_nodes: int = MAX_NODES, deadline: float | None = None, fallback: int = 20_000
+              max_nodes: int = MAX_NODES, deadline: Deadline | None = None, fallback: int = 20_000
               ) -> tuple[NDArray[np.float64], bool, int]:
     """Starting points (n, n_unknowns) for the FK Newton, whether the search completed, and the
     number of node triples examined.
 
     When the node budget ``max_nodes`` runs out, the centres of up to ``fallback`` unresolved
     triples (a deterministic subsample) are returned as well.  With a ``deadline``
-    (``time.perf_counter()`` value) the search stops early enough for the refinement of its
-    starts (:data:`REFINE_COST` each) to end by then, and the unresolved centres are limited to
-    what the remaining time can refine."""
+    (:class:`~flexkin.core.budget.Deadline`) the search runs in slices sized from the measured
+    rate and stops early enough for the refinement of its starts (:data:`REFINE_COST` each) to
+    end in time, and the unresolved centres are limited to what the remaining time can refine."""
     lo, hi, child, zc, zh, nq, ng, roots, charts = _trees(mech, max_mode, stride)
     u = np.asarray(inputs, dtype=float)
     A, al, L = system.clamps(u[None])
@@ -396,14 +401,19 @@ def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: in
     n_starts = 0
     examined = 0
     w = np.asarray(load, dtype=float)
+    dl = deadline if deadline is not None else Deadline()
+    rate = Rate(NODE_COST)
     while n_stack > 0 and examined < max_nodes:
-        if deadline is not None and time.perf_counter() + REFINE_COST * n_starts > deadline:
+        if dl.expired(REFINE_COST * n_starts):
             break
+        t = time.perf_counter()
         n_stack, n_starts, ex = bnb_kernel(lo, hi, child, zc, zh, nq, ng, roots, charts, A, al, L, system.EI,
                                            clamped, beta,
                                            system.attach, w, system.L_ref, system.F_ref, eps_tip, eps_force, eps_ang,
-                                           reach, *system.args()[:8], cols, u, stack, n_stack, 200_000, starts,
-                                           n_starts)
+                                           reach, *system.args()[:8], cols, u, stack, n_stack,
+                                           min(rate.units_for(dl.slice_seconds(), 100, SLICE), max_nodes - examined),
+                                           starts, n_starts)
+        rate.add(ex, time.perf_counter() - t)
         examined += ex
         if n_starts >= len(starts):
             starts = np.concatenate([starts, np.empty_like(starts)])
@@ -411,8 +421,8 @@ def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: in
             stack = np.concatenate([stack, np.empty_like(stack)])
     complete = n_stack == 0
     out = [starts[:n_starts]]
-    if deadline is not None:
-        fallback = min(fallback, max(0, int((deadline - time.perf_counter()) / REFINE_COST) - n_starts))
+    if dl.limited:
+        fallback = min(fallback, max(0, int(dl.remaining() / REFINE_COST) - n_starts))
     if not complete and fallback > 0:  # unresolved triples: their centres, fitted pose
         rest = stack[:n_stack]
         if len(rest) > fallback:

@@ -19,18 +19,23 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.validation import as_triple, check_budget, check_max_mode
+from ..core.budget import Deadline
+from ..core.validation import as_triple, check_max_mode
 from ..results import IKDiagnostics, KinematicsResult, Solution
 from ..system import System
-from .corrector import newton
 from .curves import leg_curves
 from .equilibrium import equilibrium_triples
 from .finish import finish_solutions
+from .sliced import newton_within
 
 __all__ = ["ik", "refine_ik", "RESIDUAL_TOL", "as_load"]
 
 #: acceptance threshold on the scaled residual of a refined solution
 RESIDUAL_TOL = 1e-10
+#: seconds reserved per equilibrium-triple candidate for its refinement and analysis, while the
+#: search runs under a time budget (a pinned IK candidate costs ~0.1 ms to refine, a solution
+#: ~1-2 ms to build; candidates outnumber solutions)
+CANDIDATE_COST = 3e-4
 
 
 def as_load(mech, load: ArrayLike | None) -> NDArray[np.float64]:
@@ -39,7 +44,7 @@ def as_load(mech, load: ArrayLike | None) -> NDArray[np.float64]:
 
 
 def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *,
-       stable_only: bool = False, time_budget: float | None = None) -> KinematicsResult:
+       stable_only: bool = False, time_budget: float | Deadline | None = None) -> KinematicsResult:
     """All equilibria of ``mech`` at platform ``pose`` under ``load`` (paper §4).
 
     Parameters
@@ -54,9 +59,12 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         Largest d-mode of any rod (default 2, i.e. the 8 combinations of modes 1-2).
     stable_only : bool
         Keep only the stable equilibria (default: all, stable and unstable).
-    time_budget : float, optional
-        Seconds for the global search of step 2; when it runs out, the candidates found so
-        far are refined and the result says ``complete = False``.
+    time_budget : float or Deadline, optional
+        Seconds for the whole IK (start-up excluded; see :mod:`flexkin.core.budget`): the
+        curves, the global search, the Newton refinement and the stability, Jacobians and
+        verification of the solutions.  The search stops early enough for its candidates to
+        be refined in time; when the time runs out the result holds what was finished and says
+        ``complete = False``.  A :class:`~flexkin.core.budget.Deadline` shares a caller's clock.
 
     Returns
     -------
@@ -68,11 +76,17 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     max_mode = check_max_mode(max_mode)
     pose = as_triple(pose, "pose (x, y, theta)")
     w = as_load(mech, load)
-    deadline = None if time_budget is None else t0 + check_budget(time_budget)
+    dl = Deadline.of(time_budget)
     system = System.from_mechanism(mech)
     B = system.platform_points(pose[None])[0]
     curves = leg_curves(mech, B, max_mode, theta=float(pose[2]))
     diag: dict[str, Any] = {"branches": tuple(len(c) for c in curves)}
+    given = tuple(float(v) for v in pose)
+    if dl.expired():
+        diag["search_complete"] = False
+        return KinematicsResult((), False, dl.message("stopped before the search for equilibria"),
+                                time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech, given,
+                                tuple(float(v) for v in w), max_mode, curves)
 
     # ---- step 2: equilibrium triples on the polylines (wrench space) -----------------------
     wscale = system.wrench_scale()
@@ -91,12 +105,13 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         dim = lay.rod[i].stop - lay.rod[i].start
         p0s.append(cat(P0, (3,))); p1s.append(cat(P1, (3,)))
         zs.append((cat(Z0, (dim,)), cat(Z1, (dim,)))); us.append((cat(U0, ()), cat(U1, ())))
-    seg, s, complete = equilibrium_triples(p0s, p1s, w / wscale, deadline=deadline)
+    seg, s, complete = equilibrium_triples(p0s, p1s, w / wscale, deadline=dl.for_search(), leaf_cost=CANDIDATE_COST)
     diag["candidates"] = int(len(seg))
     diag["search_complete"] = complete
     if len(seg) == 0:
         msg = _empty_message(curves) if complete else \
-            "search stopped early (time or node budget) before any candidate was found"
+            (dl.message("the search stopped before any candidate was found") if dl.hit else
+             "search stopped early (node budget) before any candidate was found")
         return KinematicsResult((), complete, msg, time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech,
                                 tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves)
     X = np.zeros((len(seg), lay.n_unknowns))
@@ -108,26 +123,30 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         X[:, lay.inputs.start + i] = ua + s[:, i] * (ub - ua)
 
     # ---- step 3: Newton on the full equations ----------------------------------------------
-    sols = refine_ik(system, mech, X, system.default_charts(len(X)), w, max_mode, diag)
+    sols = refine_ik(system, mech, X, system.default_charts(len(X)), w, max_mode, diag, deadline=dl)
+    complete = complete and not dl.hit
     msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
     if diag.get("continuum"):
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
                "the least loaded one is reported")
     if not complete:
-        msg = "search stopped early (time or node budget): the solution list may be incomplete"
+        msg = (dl.message("the solution list may be incomplete") if dl.hit else
+               "search stopped early (node budget): the solution list may be incomplete")
     res = KinematicsResult(tuple(sols), complete, msg, time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech,
                            tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves)
     return res.select(stable_only=True) if stable_only else res
 
 
 def refine_ik(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
-              diag: dict[str, Any] | None = None) -> list[Solution]:
-    """Newton-refine IK candidates ``X`` (pose held) and build the solutions."""
-    res = newton(system, X, charts, load, "pose")
+              diag: dict[str, Any] | None = None, deadline: Deadline | None = None) -> list[Solution]:
+    """Newton-refine IK candidates ``X`` (pose held) and build the solutions (within the
+    ``deadline``, if given: what it leaves no time for is dropped and the deadline is hit)."""
+    res = newton_within(system, X, charts, load, "pose", deadline)
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
-    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag)
+    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
+                            deadline=deadline)
 
 
 def _empty_message(curves) -> str:

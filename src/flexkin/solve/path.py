@@ -27,7 +27,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..analysis.jacobian import kinematic_jacobians, system_blocks
 from ..analysis.stability import mechanism_stability
-from ..core.validation import as_triple, check_budget, check_count, check_max_mode
+from ..core.budget import Deadline, Rate
+from ..core.validation import as_triple, check_count, check_max_mode
 from ..results import Result, Solution, finite_or_none
 from ..system import System
 from .continuation import SEAM_V, continue_ik
@@ -40,6 +41,9 @@ __all__ = ["follow_path", "PathResult", "PathEvent", "MIN_SUBSTEP", "FOLD_COND"]
 MIN_SUBSTEP = 1.0 / 64
 #: condition number of the IK Newton matrix above which a failed step is an IK singularity
 FOLD_COND = 1e6
+#: seconds to analyse one sample (stability, Jacobians) before anything is measured; with
+#: feasibility (the sample's solution and its collision checks) about ten times more
+SAMPLE_COST = 1e-3
 
 
 @dataclass(frozen=True)
@@ -71,7 +75,9 @@ class PathResult(Result):
     stability is undecided count as not stable), ``margin`` (k,), ``det_ik``, ``det_fk``, ``cond`` (k,) (Eq. 16,
     dimensionless; non-finite at singularities), ``sing_ik``, ``sing_fk`` (k,) the smooth
     singularity functions, ``x`` and ``charts`` the system's unknowns.  ``complete`` is
-    ``True`` when the end of the path was reached.
+    ``True`` when the end of the path was reached (never when a time budget ran out).
+    ``feasibility`` holds one :class:`~flexkin.analysis.feasibility.Feasibility` per sample
+    when :func:`follow_path` computed them (``feasibility=True``), else it is empty.
     """
 
     mechanism: Any = field(default=None, repr=False)
@@ -93,6 +99,7 @@ class PathResult(Result):
     charts: NDArray[np.int64] = field(default_factory=lambda: np.zeros((0, 3), np.int64), repr=False)
     events: tuple[PathEvent, ...] = ()
     start_solution: Solution | None = field(default=None, repr=False)
+    feasibility: tuple[Any, ...] = field(default=(), repr=False)
 
     @property
     def kinds(self) -> tuple[str, ...]:
@@ -157,9 +164,11 @@ class PathResult(Result):
         if feasibility and pts:
             from ..analysis.feasibility import check_feasibility
 
-            sols = self.sample_solutions() if solutions is None else solutions
-            for p, sol in zip(pts, sols):
-                f = check_feasibility(self.mechanism, sol)
+            verdicts = self.feasibility
+            if len(verdicts) != len(pts):
+                sols = self.sample_solutions() if solutions is None else solutions
+                verdicts = tuple(check_feasibility(self.mechanism, sol) for sol in sols)
+            for p, f in zip(pts, verdicts):
                 p.update(feasible=f.feasible, max_strain=f.max_strain, strains=list(f.strains),
                          feasibility=f.to_dict())
             d["feasible_samples"] = sum(bool(p["feasible"]) for p in pts)
@@ -213,7 +222,7 @@ def _pose_at(a: NDArray, b: NDArray, t: float) -> NDArray:
 
 def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: ArrayLike | None = None,
                 solution: int | Solution | None = None, max_mode: int = 2,
-                time_budget: float | None = None) -> PathResult:
+                time_budget: float | Deadline | None = None, *, feasibility: bool = False) -> PathResult:
     """Follow one IK solution from pose ``start`` to pose ``end`` (m, m, rad).
 
     Parameters
@@ -231,9 +240,14 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
         table and JSON) or a :class:`Solution`.  Default: the first stable one (else the first).
     max_mode : int
         Passed to the IK at ``start`` when ``solution`` is not a :class:`Solution`.
-    time_budget : float, optional
-        Seconds; when they run out the samples reached so far are returned with
-        ``complete = False`` and a message.
+    time_budget : float or Deadline, optional
+        Seconds for the whole path (start-up excluded; see :mod:`flexkin.core.budget`): the
+        IK at ``start``, the continuation, and the analysis of every sample (stability,
+        Jacobians, and feasibility when asked for).  When they run out, the samples reached
+        and analysed so far are returned with ``complete = False`` and a message.
+    feasibility : bool
+        Also check every sample's feasibility (:func:`~flexkin.analysis.feasibility.check_feasibility`,
+        a few ms per sample; within the budget) into :attr:`PathResult.feasibility`.
 
     Returns
     -------
@@ -242,7 +256,7 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
         is ``"continuation_failed"`` and its detail says why).
     """
     t0 = time.perf_counter()
-    deadline = None if time_budget is None else t0 + check_budget(time_budget)
+    dl = Deadline.of(time_budget)
     a = as_triple(start, "start pose (x, y, theta)")
     b = as_triple(end, "end pose (x, y, theta)")
     steps = check_count(steps, "steps")
@@ -252,7 +266,10 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
     if isinstance(solution, Solution):
         sol = solution
     else:
-        res = ik(mech, a, load=w, max_mode=check_max_mode(max_mode))
+        res = ik(mech, a, load=w, max_mode=check_max_mode(max_mode), time_budget=dl if dl.limited else None)
+        if dl.hit:  # the solution to follow is not known for sure
+            return PathResult(complete=False, message=dl.message("in the IK at the start pose"),
+                              elapsed=time.perf_counter() - t0, **base)
         if not res.solutions:
             return PathResult(complete=False, message=f"no IK solution at the start pose: {res.message}",
                               elapsed=time.perf_counter() - t0, **base)
@@ -274,10 +291,16 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
     bridged: list[PathEvent] = []
     j = 0
     timed_out = False
+    # the samples are analysed in slices as they come (part of the budget, so that the time
+    # left always covers the samples not analysed yet)
+    ana = _Analysis(system, mech, w, feasibility)
+    cost = Rate(SAMPLE_COST * (10 if feasibility else 1))
     while j < steps:
-        if deadline is not None and time.perf_counter() > deadline:
+        if dl.expired(cost.cost(len(xs) - ana.n)):
             timed_out = True
             break
+        if dl.limited and len(xs) - ana.n >= cost.units_for(dl.slice_seconds(), 1):
+            ana.run(xs, cs, cost)
         j += 1
         if j / steps <= t + 1e-15:
             continue
@@ -299,7 +322,10 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
             # a rod passing straight under tension sits on the seam of the elliptic chart
             # (|k| -> 1): bridge it with the full IK at the next samples, if a solution there
             # continues the branch (see _bridge); otherwise the branch has really ended
-            jump = _bridge(mech, system, x[0], ch[0], a, b, j, steps, w, max_mode)
+            jump = _bridge(mech, system, x[0], ch[0], a, b, j, steps, w, max_mode, dl)
+            if dl.hit:
+                timed_out, failed = True, None
+                break
             if jump is None:
                 break
             j_new, x_new, c_new = jump
@@ -315,13 +341,13 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
         ts.append(target)
         xs.append(x[0].copy())
         cs.append(ch[0].copy())
+    ana.run(xs, cs, cost)
     X, C, T = np.array(xs), np.array(cs), np.array(ts)
     P = X[:, system.layout.pose]
-    st = mechanism_stability(system, X, C)
-    jac = kinematic_jacobians(system, X, C, w)
+    an = ana.arrays()
     modes = rod_modes(system, X, C)
-    stable = st.stable == 1
-    events = sorted(_events(T, modes, stable, jac.sing_ik, jac.sing_fk) + bridged, key=lambda e: e.t_lo)
+    stable = an["stable"]
+    events = sorted(_events(T, modes, stable, an["sing_ik"], an["sing_fk"]) + bridged, key=lambda e: e.t_lo)
     msg = ""
     if failed is not None:
         t_end, dt_end = failed
@@ -329,11 +355,48 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
         events.append(PathEvent("continuation_failed", float(T[-1]), float(min(T[-1] + h, 1.0)), why))
         msg = f"continuation stopped: {why}"
     if timed_out:
-        msg = f"time budget exhausted at t = {T[-1]:.4f}"
-    return PathResult(complete=failed is None and not timed_out, message=msg, elapsed=time.perf_counter() - t0,
-                      t=T, poses=P, inputs=X[:, system.layout.inputs], modes=modes, stable=stable, margin=st.margin,
-                      det_ik=jac.det_ik, det_fk=jac.det_fk, cond=jac.cond, sing_ik=jac.sing_ik, sing_fk=jac.sing_fk,
-                      x=X, charts=C, events=tuple(events), start_solution=sol, **base)
+        msg = dl.message(f"the path was followed to t = {T[-1]:.4f}")
+    return PathResult(complete=failed is None and not timed_out and not dl.hit, message=msg,
+                      elapsed=time.perf_counter() - t0, t=T, poses=P, inputs=X[:, system.layout.inputs], modes=modes,
+                      stable=stable, margin=an["margin"], det_ik=an["det_ik"], det_fk=an["det_fk"], cond=an["cond"],
+                      sing_ik=an["sing_ik"], sing_fk=an["sing_fk"], x=X, charts=C, events=tuple(events),
+                      start_solution=sol, feasibility=tuple(ana.feasibility) if feasibility else (), **base)
+
+
+class _Analysis:
+    """Stability, Jacobians (and feasibility) of the path's samples, computed slice by slice."""
+
+    _KEYS = ("margin", "det_ik", "det_fk", "cond", "sing_ik", "sing_fk")
+
+    def __init__(self, system: System, mech, w: NDArray, feasibility: bool) -> None:
+        self.system, self.mech, self.w, self.with_feasibility = system, mech, w, feasibility
+        self.n = 0
+        self.parts: dict[str, list[NDArray]] = {k: [] for k in self._KEYS + ("stable",)}
+        self.feasibility: list[Any] = []
+
+    def run(self, xs: list[NDArray], cs: list[NDArray], rate: Rate) -> None:
+        """Analyse the samples ``xs[self.n:]``."""
+        if len(xs) <= self.n:
+            return
+        t = time.perf_counter()
+        X, C = np.array(xs[self.n:]), np.array(cs[self.n:])
+        st = mechanism_stability(self.system, X, C)
+        jac = kinematic_jacobians(self.system, X, C, self.w)
+        self.parts["stable"].append(st.stable == 1)
+        self.parts["margin"].append(st.margin)
+        for k in self._KEYS[1:]:
+            self.parts[k].append(getattr(jac, k))
+        if self.with_feasibility:
+            from ..analysis.feasibility import check_feasibility
+            from .finish import build_solutions
+
+            self.feasibility += [check_feasibility(self.mech, s)
+                                 for s in build_solutions(self.system, self.mech, X, C, self.w)]
+        rate.add(len(X), time.perf_counter() - t)
+        self.n = len(xs)
+
+    def arrays(self) -> dict[str, NDArray]:
+        return {k: np.concatenate(v) for k, v in self.parts.items()}
 
 
 def _stop_reason(system: System, last: list, w: NDArray, t_end: float, dt_end: float, span: float) -> str:
@@ -372,12 +435,13 @@ def _near_seam(system: System, x: NDArray, ch: NDArray) -> bool:
 
 
 def _bridge(mech, system: System, x: NDArray, ch: NDArray, a: NDArray, b: NDArray, j: int, steps: int,
-            w: NDArray, max_mode: int) -> tuple[int, NDArray, NDArray] | None:
+            w: NDArray, max_mode: int, deadline: Deadline) -> tuple[int, NDArray, NDArray] | None:
     """Continue the branch across the chart seam by the full IK at the next samples.
 
     The candidate at sample ``j'`` (up to 3 samples ahead) must have the same d-modes and
     inputs within a quarter of the predicted change (linear extrapolation with J_FK) of the
-    prediction, so a bridge never lands on another branch.
+    prediction, so a bridge never lands on another branch.  The IKs run on the path's
+    ``deadline``; when it is hit the bridge gives up (None) and the caller sees the hit.
     """
     if not _near_seam(system, x, ch):
         return None
@@ -393,7 +457,10 @@ def _bridge(mech, system: System, x: NDArray, ch: NDArray, a: NDArray, b: NDArra
         p1 = _pose_at(a, b, jj / steps)
         du = jac.J_FK[0] @ ((p1 - pose) / sx)
         pred = x[lay.inputs] / su + du
-        res = ik(mech, p1, load=w, max_mode=max(max_mode, int(modes0.max())))
+        res = ik(mech, p1, load=w, max_mode=max(max_mode, int(modes0.max())),
+                 time_budget=deadline if deadline.limited else None)
+        if deadline.hit:
+            return None
         best, dist = None, np.inf
         for s in res.solutions:
             if tuple(s.modes) != tuple(modes0):

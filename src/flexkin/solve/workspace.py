@@ -49,13 +49,15 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..analysis.jacobian import kinematic_jacobians
 from ..analysis.stability import mechanism_stability
-from ..core.validation import check_budget, check_max_mode
+from ..core.budget import Deadline, Rate, timed_slices
+from ..core.validation import MAX_GRID_POINTS, check_max_mode
 from ..results import Solution
 from ..rod.closed_form import SEAM_OFFSET, is_seam, standard_chart
 from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, FX, FY, M0
 from ..system import System
 from .continuation import SEAM_V, continue_ik
 from .finish import build_solutions, rod_modes
+from .grid import default_grid
 from .ik import as_load, ik, refine_ik
 
 __all__ = ["workspace", "Workspace", "WorkspaceMap", "load_workspace", "dexterous_workspace", "DexterousWorkspace",
@@ -74,6 +76,9 @@ _MAP_ARRAYS = ("status", "inputs", "modes", "margin", "det_ik", "det_fk", "cond"
 _FK_DROP = 0.1
 #: points per rod centre line for the collision checks of a workspace cell
 COLLISION_SAMPLES = 60
+#: seconds per cell of a wave (continuation, Jacobians, stability, checks) before anything is
+#: measured, to size the slices under a time budget
+CELL_COST = 2e-3
 
 
 def _ring(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -228,6 +233,9 @@ class Workspace:
         Continuation steps attempted.
     message : str
         Why the maps may be incomplete (empty when they are not).
+    complete : bool
+        False when the time budget ran out: the maps hold what was reached by then (the
+        regions may be larger).
     constraints : tuple of str
         The constraints checked at every cell: ``"ranges"``, ``"strain"``, ``"collisions"``.
     constrained : bool
@@ -253,6 +261,7 @@ class Workspace:
     constrained: bool = False
     stability: str = "full"
     grown: int = 0
+    complete: bool = True
 
     @property
     def step(self) -> float:
@@ -318,7 +327,8 @@ class Workspace:
                                 "seed": np.array(self.seed), "elapsed": self.elapsed, "steps": self.steps,
                                 "message": self.message, "n_maps": len(self.maps),
                                 "constraints": np.array(self.constraints, dtype=str),
-                                "constrained": self.constrained, "stability": self.stability, "grown": self.grown}
+                                "constrained": self.constrained, "stability": self.stability, "grown": self.grown,
+                                "complete": self.complete}
         for k, m in enumerate(self.maps):
             for name in _MAP_ARRAYS:
                 data[f"map{k}_{name}"] = getattr(m, name)
@@ -473,48 +483,11 @@ def load_workspace(path: str) -> Workspace:
     if "constraints" in d:
         extra = {"constraints": tuple(str(c) for c in d["constraints"]), "constrained": bool(d["constrained"]),
                  "stability": str(d["stability"]), "grown": int(d["grown"])}
+    if "complete" in d:
+        extra["complete"] = bool(d["complete"])
     return Workspace(str(d["mechanism_name"]), tuple(str(k) for k in d["kinds"]), float(d["theta"]),
                      tuple(float(v) for v in d["load"]), d["x"], d["y"], tuple(float(v) for v in d["seed"]),
                      tuple(maps), float(d["elapsed"]), int(d["steps"]), str(d["message"]), **extra)
-
-
-def default_grid(mech: Any, step: float | None = None, bounds: ArrayLike | None = None
-                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Grid from ``bounds = (x0, x1, y0, y1)`` (default: the box of the legs' origins, grown
-    by a quarter of the rods' length) and ``step`` (default: 1/100 of the box's larger side).
-
-    Parameters
-    ----------
-    mech : Mechanism
-        The mechanism (legs' origins and rod lengths for the default box).
-    step : float, optional
-        Grid step (m).
-    bounds : (x0, x1, y0, y1), optional
-        Grid box (m).
-
-    Returns
-    -------
-    x, y : ndarray
-        Grid coordinates (m).
-    """
-    if bounds is None:
-        o = np.array([leg.origin for leg in mech.legs], dtype=float)
-        L = max((leg.rod.length or 0.0) for leg in mech.legs) or float(mech.length_scale)
-        lo, hi = o.min(0) - 0.25 * L, o.max(0) + 0.25 * L
-        bounds = (lo[0], hi[0], lo[1], hi[1])
-    b = np.asarray(bounds, dtype=float).reshape(-1)
-    if b.shape != (4,) or not np.all(np.isfinite(b)) or b[1] <= b[0] or b[3] <= b[2]:
-        raise ValueError(f"bounds must be four finite numbers x0 < x1, y0 < y1, got {bounds!r}")
-    if step is None:
-        step = max(b[1] - b[0], b[3] - b[2]) / 100.0
-    step = float(step)
-    if not np.isfinite(step) or step <= 0:
-        raise ValueError(f"step must be a finite number > 0, got {step!r}")
-    nx = int(np.floor((b[1] - b[0]) / step + 1e-9)) + 1
-    ny = int(np.floor((b[3] - b[2]) / step + 1e-9)) + 1
-    if nx * ny > 4_000_000:
-        raise ValueError(f"grid of {nx} x {ny} points is too large: increase step or shrink bounds")
-    return b[0] + step * np.arange(nx), b[2] + step * np.arange(ny)
 
 
 def _continue_adaptive(system: System, x: NDArray, ch: NDArray, p1: NDArray, w: NDArray, levels: int = 3
@@ -654,7 +627,7 @@ class _CellChecks:
 def _propagate(m: System, x0: NDArray, c0: NDArray, seed_ij: tuple[int, int], X: NDArray, Y: NDArray,
                theta: float, w: NDArray, claimed: list[tuple[NDArray, NDArray]], checks: _CellChecks,
                constrained: bool, full: bool, progress: Callable[[int], None] | None,
-               deadline: float | None = None) -> tuple[dict[str, NDArray], int, set[int]]:
+               deadline: Deadline | None = None) -> tuple[dict[str, NDArray], int, set[int]]:
     """Wave propagation of one seed. Returns the map arrays, the number of continuation
     steps, and the indices of earlier maps that this one joins (same solution at a cell)."""
     ny, nx = len(Y), len(X)
@@ -690,8 +663,10 @@ def _propagate(m: System, x0: NDArray, c0: NDArray, seed_ij: tuple[int, int], X:
     sik[j0, i0], sfk[j0, i0], strain[j0, i0], viol[j0, i0] = jac.sing_ik[0], jac.sing_fk[0], s0[0], v0[0]
     front = [(j0, i0)]
     steps = 0
+    dl = deadline if deadline is not None else Deadline()
+    rate = Rate(CELL_COST)
     while front:
-        if deadline is not None and time.perf_counter() > deadline:
+        if dl.expired():
             break
         src, dst = [], []
         seen: set[tuple[int, int]] = set()
@@ -704,79 +679,83 @@ def _propagate(m: System, x0: NDArray, c0: NDArray, seed_ij: tuple[int, int], X:
                     dst.append((jj, ii))
         if not dst:
             break
-        S = np.array(src)
-        D = np.array(dst)
-        xs = sol[S[:, 0], S[:, 1]]
-        cs = chs[S[:, 0], S[:, 1]]
-        p1 = np.stack([X[D[:, 1]], Y[D[:, 0]], np.full(len(D), theta)], -1)
-        xn, cn, ok = _continue_adaptive(m, xs, cs, p1, w)
-        steps += len(D)
+        S_all, D_all = np.array(src), np.array(dst)
         new_front = []
-        idx = np.flatnonzero(ok)
-        if idx.size:
-            jac = kinematic_jacobians(m, xn[idx], cn[idx], w)
-            Sj, Si = S[idx, 0], S[idx, 1]
-            crossed_ik = np.sign(jac.sing_ik) != np.sign(sik[Sj, Si])
-            crossed_fk = np.sign(jac.sing_fk) != np.sign(sfk[Sj, Si])
-            # stability along the wave: the whole second variation where det A_FK dropped
-            stable = np.ones(idx.size, bool)
-            mg = np.full(idx.size, np.nan)
-            chk = ~crossed_ik & ~crossed_fk
-            if not full:
-                chk &= np.abs(jac.sing_fk) < _FK_DROP * np.abs(sfk[Sj, Si])
-            if np.any(chk):
-                st = mechanism_stability(m, xn[idx[chk]], cn[idx[chk]])
-                stable[chk] = st.stable == 1
-                mg[chk] = st.margin
-            cstrain, cviol = checks(xn[idx], cn[idx])
-            for k, r in enumerate(idx):
+        # the wave in slices, so that the time budget is looked at often enough
+        for lo, hi in timed_slices(len(D_all), dl, rate, max_slice=len(D_all)):
+            t_slice = time.perf_counter()
+            S, D = S_all[lo:hi], D_all[lo:hi]
+            xs = sol[S[:, 0], S[:, 1]]
+            cs = chs[S[:, 0], S[:, 1]]
+            p1 = np.stack([X[D[:, 1]], Y[D[:, 0]], np.full(len(D), theta)], -1)
+            xn, cn, ok = _continue_adaptive(m, xs, cs, p1, w)
+            steps += len(D)
+            idx = np.flatnonzero(ok)
+            if idx.size:
+                jac = kinematic_jacobians(m, xn[idx], cn[idx], w)
+                Sj, Si = S[idx, 0], S[idx, 1]
+                crossed_ik = np.sign(jac.sing_ik) != np.sign(sik[Sj, Si])
+                crossed_fk = np.sign(jac.sing_fk) != np.sign(sfk[Sj, Si])
+                # stability along the wave: the whole second variation where det A_FK dropped
+                stable = np.ones(idx.size, bool)
+                mg = np.full(idx.size, np.nan)
+                chk = ~crossed_ik & ~crossed_fk
+                if not full:
+                    chk &= np.abs(jac.sing_fk) < _FK_DROP * np.abs(sfk[Sj, Si])
+                if np.any(chk):
+                    st = mechanism_stability(m, xn[idx[chk]], cn[idx[chk]])
+                    stable[chk] = st.stable == 1
+                    mg[chk] = st.margin
+                cstrain, cviol = checks(xn[idx], cn[idx])
+                for k, r in enumerate(idx):
+                    jj, ii = D[r]
+                    j, i = S[r]
+                    if crossed_ik[k]:
+                        status[jj, ii] = FAILED
+                        bik[j, i] = True
+                        continue
+                    if crossed_fk[k] or not stable[k]:
+                        status[jj, ii] = UNSTABLE
+                        bfk[j, i] = True
+                        continue
+                    if constrained and cviol[k]:
+                        status[jj, ii] = INFEASIBLE
+                        viol[jj, ii] = cviol[k]
+                        binf[j, i] = True
+                        continue
+                    status[jj, ii] = REACHED
+                    sol[jj, ii], chs[jj, ii] = xn[r], cn[r]
+                    margin[jj, ii], dik[jj, ii], dfk[jj, ii] = mg[k], jac.det_ik[k], jac.det_fk[k]
+                    cond[jj, ii], sik[jj, ii], sfk[jj, ii] = jac.cond[k], jac.sing_ik[k], jac.sing_fk[k]
+                    strain[jj, ii], viol[jj, ii] = cstrain[k], cviol[k]
+                    # joining a region mapped from an earlier seed: same solution at this cell
+                    hit = False
+                    for q, (st_q, sol_q) in enumerate(claimed):
+                        if st_q[jj, ii] == REACHED and np.max(np.abs(sol_q[jj, ii, iu] - xn[r, iu]) / su) < 1e-6:
+                            joins.add(q)
+                            hit = True
+                    if not hit:
+                        new_front.append((jj, ii))
+            for r in np.flatnonzero(~ok):
                 jj, ii = D[r]
                 j, i = S[r]
-                if crossed_ik[k]:
+                taut = np.array([(cs[r, i] == CHART_UNIFIED and abs(xs[r, lay.rod[i].start]) > SEAM_V) or cs[r, i] == 1
+                                 for i in range(3)])
+                if np.any(taut) and not np.any(taut & m.angular):
+                    # a rod of a prismatic or length leg is close to straight under tension, where
+                    # the elliptic chart has its seam: the step failed for the chart, not for the
+                    # mechanism (a revolute leg's taut rod is at its reach |B - A| = L instead:
+                    # a true boundary)
+                    if status[jj, ii] == UNVISITED:
+                        status[jj, ii] = SEAM
+                    bseam[j, i] = True
+                    continue
+                if status[jj, ii] in (UNVISITED, SEAM):
                     status[jj, ii] = FAILED
-                    bik[j, i] = True
-                    continue
-                if crossed_fk[k] or not stable[k]:
-                    status[jj, ii] = UNSTABLE
-                    bfk[j, i] = True
-                    continue
-                if constrained and cviol[k]:
-                    status[jj, ii] = INFEASIBLE
-                    viol[jj, ii] = cviol[k]
-                    binf[j, i] = True
-                    continue
-                status[jj, ii] = REACHED
-                sol[jj, ii], chs[jj, ii] = xn[r], cn[r]
-                margin[jj, ii], dik[jj, ii], dfk[jj, ii] = mg[k], jac.det_ik[k], jac.det_fk[k]
-                cond[jj, ii], sik[jj, ii], sfk[jj, ii] = jac.cond[k], jac.sing_ik[k], jac.sing_fk[k]
-                strain[jj, ii], viol[jj, ii] = cstrain[k], cviol[k]
-                # joining a region mapped from an earlier seed: same solution at this cell
-                hit = False
-                for q, (st_q, sol_q) in enumerate(claimed):
-                    if st_q[jj, ii] == REACHED and np.max(np.abs(sol_q[jj, ii, iu] - xn[r, iu]) / su) < 1e-6:
-                        joins.add(q)
-                        hit = True
-                if not hit:
-                    new_front.append((jj, ii))
-        for r in np.flatnonzero(~ok):
-            jj, ii = D[r]
-            j, i = S[r]
-            taut = np.array([(cs[r, i] == CHART_UNIFIED and abs(xs[r, lay.rod[i].start]) > SEAM_V) or cs[r, i] == 1
-                             for i in range(3)])
-            if np.any(taut) and not np.any(taut & m.angular):
-                # a rod of a prismatic or length leg is close to straight under tension, where
-                # the elliptic chart has its seam: the step failed for the chart, not for the
-                # mechanism (a revolute leg's taut rod is at its reach |B - A| = L instead:
-                # a true boundary)
-                if status[jj, ii] == UNVISITED:
-                    status[jj, ii] = SEAM
-                bseam[j, i] = True
-                continue
-            if status[jj, ii] in (UNVISITED, SEAM):
-                status[jj, ii] = FAILED
-            bik[j, i] = True
-        if progress is not None:
-            progress(len(D))
+                bik[j, i] = True
+            if progress is not None:
+                progress(len(D))
+            rate.add(len(D), time.perf_counter() - t_slice)
         front = new_front
     # a neighbour reached from elsewhere later does not make a cell a boundary
     reached = status == REACHED
@@ -806,7 +785,7 @@ def _merge_into(new: dict[str, NDArray], old: dict[str, NDArray]) -> None:
 
 def _map_all(m: System, starts: list[tuple[int, NDArray, NDArray]], ij: tuple[int, int], X: NDArray, Y: NDArray,
              th: float, w: NDArray, checks: _CellChecks, constrained: bool, full: bool,
-             cb: Callable[[int], None] | None, deadline: float | None) -> tuple[list[WorkspaceMap], int]:
+             cb: Callable[[int], None] | None, deadline: Deadline) -> tuple[list[WorkspaceMap], int]:
     """The maps of every seed solution on the grid ``X`` x ``Y`` (merged aspects, largest first)."""
     j0, i0 = ij
     raw: list[dict[str, NDArray]] = []
@@ -821,7 +800,7 @@ def _map_all(m: System, starts: list[tuple[int, NDArray, NDArray]], ij: tuple[in
         if dup:
             seeds[dup[0]].append(k)
             continue
-        if deadline is not None and time.perf_counter() > deadline:
+        if deadline.expired():
             break
         maps_k, n, joins = _propagate(m, x0, c0, (j0, i0), X, Y, th, w, claimed, checks, constrained, full, cb,
                                       deadline)
@@ -864,7 +843,7 @@ def _grown(X: NDArray, Y: NDArray, maps: Sequence[WorkspaceMap]) -> tuple[NDArra
                         X[-1] + h * np.arange(1, ax + 1) if sides[1] else []])
     y = np.concatenate([Y[0] - h * np.arange(ay, 0, -1) if sides[2] else [], Y,
                         Y[-1] + h * np.arange(1, ay + 1) if sides[3] else []])
-    return (x, y) if len(x) * len(y) <= 4_000_000 else None
+    return (x, y) if len(x) * len(y) <= MAX_GRID_POINTS else None
 
 
 def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None, load: ArrayLike | None = None,
@@ -898,9 +877,11 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
     progress : bool or callable
         ``True`` shows a tqdm progress bar; a callable receives the number of continuation
         steps of each wave.
-    time_budget : float, optional
-        Seconds; when they run out the propagation stops and ``message`` says so (the maps
-        hold what was reached).
+    time_budget : float or Deadline, optional
+        Seconds for the whole map (start-up excluded; see :mod:`flexkin.core.budget`): the
+        seed IK, the waves with every cell's continuation, Jacobians, stability and checks,
+        and the growth of the grid.  When they run out, the propagation stops, the maps hold
+        what was reached, ``complete`` is False and ``message`` says so.
     constrained : bool
         Stop the wave at infeasible cells (inputs out of range, strain over the mechanism's
         ``max_strain``, collisions when ``collisions``); by default they are reached and
@@ -920,7 +901,7 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
     Workspace
     """
     t0 = time.perf_counter()
-    deadline = None if time_budget is None else t0 + check_budget(time_budget)
+    dl = Deadline.of(time_budget)
     th = float(theta)
     if not np.isfinite(th):
         raise ValueError(f"theta must be finite, got {theta!r}")
@@ -954,7 +935,7 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
         moved = refine_ik(m, mech, x[None], np.array(seed.charts)[None], w, 6)
         starts = [(0, moved[0].x, moved[0].charts)] if moved else []
     else:
-        res = ik(mech, pose, load=w, max_mode=check_max_mode(max_mode))
+        res = ik(mech, pose, load=w, max_mode=check_max_mode(max_mode), time_budget=dl if dl.limited else None)
         res_sols = list(res.solutions)
         stable = [k for k, s in enumerate(res_sols) if s.stable]
         if not all_aspects:
@@ -970,8 +951,10 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
     meta = {"constraints": checks.names, "constrained": bool(constrained), "stability": stability}
     if not starts:
         why = "no feasible stable IK solution at the seed pose" if notes else "no stable IK solution at the seed pose"
+        if dl.hit:
+            why = dl.message("in the IK at the seed pose")
         return Workspace(mech.name, kinds, th, tuple(map(float, w)), X, Y, (float(X[i0]), float(Y[j0])), (),
-                         time.perf_counter() - t0, 0, why, **meta)
+                         time.perf_counter() - t0, 0, why, complete=not dl.hit, **meta)
     bar = None
     cb: Callable[[int], None] | None = None
     if progress is True:
@@ -984,9 +967,9 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
         cb = progress
     total, grown = 0, 0
     while True:
-        maps, n = _map_all(m, starts, (j0, i0), X, Y, th, w, checks, constrained, stability == "full", cb, deadline)
+        maps, n = _map_all(m, starts, (j0, i0), X, Y, th, w, checks, constrained, stability == "full", cb, dl)
         total += n
-        if grown >= grow or (deadline is not None and time.perf_counter() > deadline):
+        if grown >= grow or dl.expired():
             break
         bigger = _grown(X, Y, maps)
         if bigger is None:
@@ -997,13 +980,13 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
         grown += 1
     if bar is not None:
         bar.close()
-    if deadline is not None and time.perf_counter() > deadline:
-        notes.append("time budget exhausted: the maps hold what was reached")
+    if dl.hit:
+        notes.append(dl.message("the maps hold what was reached"))
     if any(mp.cut_by_grid for mp in maps):
         notes.append("the region reaches the grid's edge (boundary_edge cells): it is cut by the bounds, its areas "
                      "are lower bounds")
     return Workspace(mech.name, kinds, th, tuple(map(float, w)), X, Y, (float(X[i0]), float(Y[j0])), tuple(maps),
-                     time.perf_counter() - t0, total, "; ".join(notes), grown=grown, **meta)
+                     time.perf_counter() - t0, total, "; ".join(notes), grown=grown, complete=not dl.hit, **meta)
 
 
 @dataclass(frozen=True)

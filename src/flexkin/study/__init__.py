@@ -11,9 +11,9 @@ matplotlib are imported only when a study runs.
 """
 
 from .evaluate import METRICS, DesignTask, evaluate_design
-from .run import SYNCHRONOUS, StudyResult, run_study
+from .run import SYNCHRONOUS, StudyAborted, StudyInterrupted, StudyResult, run_study
 from .spec import StudyError, StudySpec, load_study, study_from_dict
 from .table import read_table
 
-__all__ = ["run_study", "StudyResult", "StudySpec", "StudyError", "load_study", "study_from_dict", "read_table",
-           "evaluate_design", "DesignTask", "METRICS", "SYNCHRONOUS"]
+__all__ = ["run_study", "StudyResult", "StudySpec", "StudyError", "StudyAborted", "StudyInterrupted", "load_study",
+           "study_from_dict", "read_table", "evaluate_design", "DesignTask", "METRICS", "SYNCHRONOUS"]

@@ -113,7 +113,7 @@ def valid_keys(n_legs: int = 3) -> list[str]:
 
 def _unknown(key: str, n_legs: int, detail: str = "unknown parameter") -> GridKeyError:
     keys = valid_keys(n_legs)
-    close = difflib.get_close_matches(key, keys, n=1, cutoff=0.6)
+    close = difflib.get_close_matches(key, keys, n=1, cutoff=0.6) if len(key) <= 64 else []
     if not close:
         low = {k.lower(): k for k in keys}
         close = [low[key.lower()]] if key.lower() in low else []

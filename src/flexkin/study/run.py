@@ -13,6 +13,12 @@ The client writes each row to ``DIR/rows/`` as soon as it completes, so a killed
 a killed study loses only the rows in flight; a re-run with the same ``DIR`` computes only
 the missing rows.  The table is assembled at the end, in row order (design, then orientation),
 so it does not depend on the number of workers or on the completion order.
+
+When the cluster fails -- the connection to the scheduler is lost, or no worker is left for
+``worker_timeout`` seconds -- the study stops with :class:`StudyAborted`; on Ctrl-C with
+:class:`StudyInterrupted`.  Both name the rows finished (kept in ``DIR/rows``: a re-run
+computes the rest); no table is written.  The local cluster's worker processes ignore Ctrl-C
+(the study stops them), so an interrupt prints nothing of theirs.
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import signal
 import sys
 import threading
 import time
@@ -31,12 +38,75 @@ from .evaluate import METRICS, DesignTask, evaluate_design
 from .spec import StudyError, StudySpec, load_study, study_from_dict
 from .table import RowStore, _atomic_write, rows_to_arrow, table_columns, write_table
 
-__all__ = ["run_study", "StudyResult", "SYNCHRONOUS", "CONNECT_TIMEOUT", "default_workers"]
+__all__ = ["run_study", "StudyResult", "StudyAborted", "StudyInterrupted", "SYNCHRONOUS", "CONNECT_TIMEOUT",
+           "WORKER_TIMEOUT", "default_workers"]
 
 #: ``scheduler`` value that runs the study in the calling process, without Dask.
 SYNCHRONOUS = "synchronous"
 #: Seconds to wait for a scheduler given by address before giving up.
 CONNECT_TIMEOUT = 10.0
+#: Seconds the study waits while no Dask worker is connected before giving up.
+WORKER_TIMEOUT = 60.0
+#: Seconds between two looks at the cluster while no row completes.
+_POLL = 0.5
+
+
+def _row_label(task: DesignTask) -> str:
+    params = ", ".join(f"{k} = {v:g}" for k, v in task.params)
+    return f"design {task.design} ({params}) at {task.theta_deg:g} deg"
+
+
+def _rows_named(tasks: list[DesignTask], limit: int = 8) -> str:
+    names = [_row_label(t) for t in tasks[:limit]]
+    more = f" and {len(tasks) - limit} more" if len(tasks) > limit else ""
+    return "; ".join(names) + more
+
+
+class _Stopped:
+    """What a stopped study leaves: the rows finished by this run (kept in ``out/rows``)."""
+
+    def _setup(self, reason: str, finished: list[DesignTask], remaining: int, out: Path) -> None:
+        self.reason = reason
+        self.finished = tuple(finished)
+        self.remaining = int(remaining)
+        self.out = out
+
+    def describe(self) -> str:
+        """One line: why, which rows are kept, how to resume."""
+        kept = (f"{len(self.finished)} row(s) finished and kept in {self.out / 'rows'}: {_rows_named(list(self.finished))}"
+                if self.finished else f"no row finished in this run (rows are kept in {self.out / 'rows'})")
+        return (f"{self.reason}; {kept}; {self.remaining} row(s) not computed: run the same command again to "
+                "compute them")
+
+
+class StudyAborted(RuntimeError, _Stopped):
+    """The study could not finish: the Dask scheduler was lost, or no worker was left.
+
+    Attributes
+    ----------
+    reason : str
+    finished : tuple of DesignTask
+        The rows finished by this run (stored in ``out/rows``; a re-run reuses them).
+    remaining : int
+        Rows not computed.
+    out : Path
+    """
+
+    def __init__(self, reason: str, finished: list[DesignTask], remaining: int, out: Path) -> None:
+        self._setup(reason, finished, remaining, out)
+        super().__init__(self.describe())
+
+
+class StudyInterrupted(KeyboardInterrupt, _Stopped):
+    """The study was interrupted (Ctrl-C); attributes as :class:`StudyAborted`."""
+
+    def __init__(self, finished: list[DesignTask], remaining: int, out: Path) -> None:
+        self._setup("interrupted", finished, remaining, out)
+        super().__init__(self.describe())
+
+
+class _ClusterLost(Exception):
+    """Internal: the Dask cluster cannot compute the study any more (message: why)."""
 
 
 @dataclass(frozen=True)
@@ -145,20 +215,81 @@ def _out_dir(out: str | os.PathLike[str]) -> Path:
     return p
 
 
+def _ask_identity(address: str, timeout: float) -> dict[str, Any]:
+    """The identity a Dask server at ``address`` gives (raises on anything else: no answer within
+    ``timeout``, a peer that does not speak Dask's protocol)."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def ask() -> Any:
+        comm = await connect(address, timeout=timeout)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    box: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            box["reply"] = asyncio.run(asyncio.wait_for(ask(), timeout))
+        except BaseException as e:  # noqa: BLE001 - reported by the caller
+            box["error"] = e
+
+    th = threading.Thread(target=run, name="flexkin-study-probe", daemon=True)
+    th.start()
+    th.join(timeout + 0.5)
+    if "reply" in box:
+        return box["reply"] if isinstance(box["reply"], dict) else {"reply": box["reply"]}
+    raise box.get("error") or TimeoutError(f"no answer within {timeout:g} s")
+
+
+def _disarm(e: BaseException | None) -> None:
+    """A Client whose construction failed is left half-built inside the exception's traceback;
+    at garbage collection it would wait for its own close (seconds) and print a traceback: mark
+    it closed first."""
+    import traceback
+
+    from distributed import Client
+
+    if e is None:
+        return
+    for frame, _ in traceback.walk_tb(e.__traceback__):
+        obj = frame.f_locals.get("self")
+        if isinstance(obj, Client):
+            obj.status = "closed"
+            try:
+                obj._loop_runner.stop()
+            except Exception:  # noqa: BLE001 - best effort
+                pass
+    e.__traceback__ = None
+
+
+def _parse_address(scheduler: str) -> tuple[str, tuple[str, int] | None]:
+    """The scheme of a scheduler address and, for TCP, its host and port (StudyError if bad)."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import backends
+
+    try:
+        scheme, loc = parse_address(scheduler)
+        if scheme not in backends:
+            raise ValueError(f"unknown scheme {scheme!r}; known: {', '.join(sorted(backends))}")
+        return scheme, (parse_host_port(loc) if scheme == "tcp" else None)
+    except (ValueError, TypeError) as e:
+        raise StudyError(f"bad Dask scheduler address {scheduler!r} ({' '.join(str(e).split())}); "
+                         "expected tcp://HOST:PORT") from None
+
+
 def _connect(scheduler: str, timeout: float):
     """A client of the scheduler at ``scheduler``, or a StudyError within ``timeout`` seconds."""
     import gc
     import socket
 
     from distributed import Client
-    from distributed.comm.addressing import parse_address, parse_host_port
 
-    try:
-        scheme, loc = parse_address(scheduler)
-        host_port = parse_host_port(loc) if scheme == "tcp" else None
-    except (ValueError, TypeError) as e:
-        raise StudyError(f"bad Dask scheduler address {scheduler!r} ({' '.join(str(e).split())}); "
-                         "expected tcp://HOST:PORT") from None
+    _, host_port = _parse_address(scheduler)
     deadline = time.monotonic() + timeout
     if host_port is not None:  # a plain TCP probe first: a clear error, and no half-open client
         last: Exception | None = None
@@ -173,8 +304,16 @@ def _connect(scheduler: str, timeout: float):
             except OSError as e:
                 last = e
                 time.sleep(min(0.2, max(deadline - time.monotonic(), 0.0)))
-    # the handshake can hang on a peer that accepts but does not answer: build the client in a
-    # daemon thread and give up at the deadline
+    # something listens: is it a Dask scheduler?  (a peer that accepts but does not speak Dask
+    # would make the client hang or fail half-built)
+    try:
+        ident = _ask_identity(scheduler, max(deadline - time.monotonic(), 0.1))
+    except BaseException as e:  # noqa: BLE001 - any failure means: no scheduler there
+        raise StudyError(f"no Dask scheduler answers at {scheduler!r} within {timeout:g} s ({_one_line(e)})") from None
+    if "Scheduler" not in str(ident.get("type", "")):
+        raise StudyError(f"the Dask server at {scheduler!r} is not a scheduler (it says type "
+                         f"{str(ident.get('type'))[:40]!r})")
+    # build the client in a daemon thread and give up at the deadline
     box: dict[str, Any] = {}
 
     def build() -> None:
@@ -188,7 +327,8 @@ def _connect(scheduler: str, timeout: float):
     th.join(max(deadline - time.monotonic(), 0.0) + 1.0)
     if "client" in box:
         return box["client"]
-    e = box.get("error")
+    e = box.pop("error", None)
+    _disarm(e)
     hook = sys.unraisablehook
     sys.unraisablehook = lambda *_: None  # a half-built client's __del__ would print a traceback
     try:
@@ -219,8 +359,8 @@ def _check_workers(client: Any) -> None:
 def run_study(spec_or_path: StudySpec | str | os.PathLike[str] | Mapping[str, Any], out: str | os.PathLike[str],
               workers: int | None = None, scheduler: str | None = None, progress: bool = True, *,
               client: Any = None, figures: bool = True, retry_failed: bool = False,
-              timeout: float = CONNECT_TIMEOUT, on_row: Callable[[dict[str, Any]], None] | None = None
-              ) -> StudyResult:
+              timeout: float = CONNECT_TIMEOUT, on_row: Callable[[dict[str, Any]], None] | None = None,
+              worker_timeout: float = WORKER_TIMEOUT) -> StudyResult:
     """Run a design study and write its table and figures into ``out``.
 
     Parameters
@@ -248,6 +388,9 @@ def run_study(spec_or_path: StudySpec | str | os.PathLike[str] | Mapping[str, An
         Seconds to wait when connecting to ``scheduler``.
     on_row : callable, optional
         Called in this process with each row as it completes (after it is stored).
+    worker_timeout : float
+        Seconds to wait while no Dask worker is connected (none started, all lost) before
+        giving up with :class:`StudyAborted`.
 
     Returns
     -------
@@ -257,6 +400,10 @@ def run_study(spec_or_path: StudySpec | str | os.PathLike[str] | Mapping[str, An
     ------
     StudyError
         Bad study file or arguments, unwritable ``out``, unreachable scheduler.
+    StudyAborted
+        The cluster failed (scheduler lost, no worker left); the finished rows are kept.
+    StudyInterrupted
+        Ctrl-C (a :class:`KeyboardInterrupt`); the finished rows are kept.
     """
     t_start = time.perf_counter()
     spec = _spec(spec_or_path)
@@ -267,8 +414,11 @@ def run_study(spec_or_path: StudySpec | str | os.PathLike[str] | Mapping[str, An
         raise StudyError(f"workers: expected an integer from 1 to 4096, got {workers!r}")
     if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
         raise StudyError(f"scheduler: expected an address such as tcp://host:8786, got {scheduler!r}")
-    if not (isinstance(timeout, (int, float)) and math.isfinite(timeout) and timeout > 0):
-        raise StudyError(f"timeout: expected a number of seconds > 0, got {timeout!r}")
+    for name, v in (("timeout", timeout), ("worker_timeout", worker_timeout)):
+        if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise StudyError(f"{name}: expected a number of seconds > 0, got {v!r}")
+    if scheduler is not None and scheduler != SYNCHRONOUS:
+        _parse_address(scheduler)  # a bad address fails before any work
     outp = _out_dir(out)
     tasks = spec.tasks()
     _atomic_write(outp / "study.json", json.dumps(spec.to_dict(), indent=2, allow_nan=False).encode())
@@ -299,18 +449,29 @@ def run_study(spec_or_path: StudySpec | str | os.PathLike[str] | Mapping[str, An
             on_row(row)
 
     mode, n_workers = SYNCHRONOUS, (1 if todo else 0)
+    by_key = {t.key: t for t in todo}
+
+    def kept() -> list[DesignTask]:
+        return [by_key[k] for k, r in computed.items() if k in by_key and not r.get("error")]
+
     try:
         if todo and scheduler == SYNCHRONOUS:
             for t in todo:
                 finish(t, evaluate_design(t), True)
         elif todo:
-            mode, n_workers = _run_dask(todo, finish, workers, scheduler, client, timeout)
+            mode, n_workers = _run_dask(todo, finish, workers, scheduler, client, timeout, worker_timeout)
         elif client is not None:
             mode = "client"
         elif scheduler is not None:
             mode = scheduler
         else:
             mode = "local"
+    except _ClusterLost as e:
+        done_ok = kept()
+        raise StudyAborted(str(e), done_ok, len(todo) - len(done_ok), outp) from None
+    except KeyboardInterrupt:
+        done_ok = kept()
+        raise StudyInterrupted(done_ok, len(todo) - len(done_ok), outp) from None
     finally:
         if bar is not None:
             bar.close()
@@ -354,29 +515,79 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+class _QuietDask:
+    """Dask's own log messages (reconnection attempts, tracebacks of a lost connection) silenced
+    while a study runs: the study reports what happened itself, in one line."""
+
+    _NAMES = ("distributed", "tornado", "asyncio")
+
+    def __enter__(self) -> _QuietDask:
+        import logging
+
+        names = [n for n in list(logging.root.manager.loggerDict)
+                 if any(n == p or n.startswith(p + ".") for p in self._NAMES)]
+        self._levels = {n: logging.getLogger(n).level for n in set(names) | set(self._NAMES)}
+        for n in self._levels:
+            logging.getLogger(n).setLevel(logging.CRITICAL + 1)
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        import logging
+
+        for n, lv in self._levels.items():
+            logging.getLogger(n).setLevel(lv)
+
+
+def _connected_workers(client: Any) -> int | None:
+    """Workers connected to the scheduler now (None if the scheduler does not answer)."""
+    try:
+        return len(client.sync(client.scheduler.ncores, callback_timeout=5.0))
+    except Exception:  # noqa: BLE001 - a scheduler that does not answer
+        return None
+
+
 def _run_dask(todo: list[DesignTask], finish: Callable[[DesignTask, dict[str, Any], bool], None],
-              workers: int | None, scheduler: str | None, client: Any, timeout: float) -> tuple[str, int]:
-    """Compute ``todo`` on Dask; call ``finish`` for each row as it completes."""
+              workers: int | None, scheduler: str | None, client: Any, timeout: float,
+              worker_timeout: float = WORKER_TIMEOUT) -> tuple[str, int]:
+    """Compute ``todo`` on Dask; call ``finish`` for each row as it completes.  Raises
+    ``_ClusterLost`` when the scheduler is lost or no worker is left for ``worker_timeout``."""
     import logging
 
     from distributed import Client, LocalCluster, as_completed
 
     cluster = None
     own_client = client is None
-    if client is not None:
-        mode = "client"
-    elif scheduler is not None:
-        client = _connect(scheduler, timeout)
-        mode = scheduler
-    else:
-        try:
-            cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
-        except Exception as e:
-            raise StudyError(f"cannot start a local Dask cluster ({_one_line(e)}); a script that runs a study "
-                             "must guard it with `if __name__ == \"__main__\":`") from None
-        client = Client(cluster, set_as_default=False)
-        mode = "local"
+    quiet = _QuietDask().__enter__()
+    try:
+        if client is not None:
+            mode = "client"
+        elif scheduler is not None:
+            client = _connect(scheduler, timeout)
+            mode = scheduler
+        else:
+            # the worker processes ignore Ctrl-C (the study stops them): those started now inherit
+            # the ignored signal from the start, those a nanny restarts set it in their preload
+            main = threading.current_thread() is threading.main_thread()
+            old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+            try:
+                cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
+                                       dashboard_address=None, silence_logs=logging.CRITICAL,
+                                       # no dashboard; the scheduler's small HTTP server on a free
+                                       # local port (its default 8787 may be taken: a warning)
+                                       scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                                       preload=["flexkin.study.worker_setup"])
+            except Exception as e:
+                raise StudyError(f"cannot start a local Dask cluster ({_one_line(e)}); a script that runs a study "
+                                 "must guard it with `if __name__ == \"__main__\":`") from None
+            finally:
+                if main:
+                    signal.signal(signal.SIGINT, old)
+            client = Client(cluster, set_as_default=False)
+            mode = "local"
+    except BaseException:
+        quiet.__exit__(None, None, None)
+        raise
+    where = "the Dask scheduler" + (f" at {scheduler}" if scheduler else "")
     futures: dict[str, tuple[Any, DesignTask]] = {}
     try:
         if mode != "local":
@@ -385,22 +596,59 @@ def _run_dask(todo: list[DesignTask], finish: Callable[[DesignTask, dict[str, An
         for t in todo:
             fut = client.submit(evaluate_design, t, key=f"flexkin-study-{t.key}", pure=False, retries=0)
             futures[fut.key] = (fut, t)
-        for fut in as_completed([f for f, _ in futures.values()], loop=client.loop):
-            _, t = futures.pop(fut.key)
-            try:
-                row = fut.result()
-            except Exception as e:  # the worker died (KilledWorker), lost data, cancelled...
-                finish(t, _error_row(t, _one_line(e)), False)  # not stored: a re-run tries again
-            else:
-                finish(t, row, True)
-            fut.release()
+        ac = as_completed([f for f, _ in futures.values()], loop=client.loop)
+        idle_since: float | None = None
+        last_look = time.monotonic()
+        while not ac.is_empty():
+            batch = ac.next_batch(block=False)
+            for fut in batch:
+                _, t = futures.pop(fut.key)
+                if client.status != "running":
+                    futures[fut.key] = (fut, t)
+                    break
+                try:
+                    row = fut.result()
+                except Exception as e:  # the worker died (KilledWorker), lost data, cancelled...
+                    if client.status != "running":
+                        futures[fut.key] = (fut, t)
+                        break
+                    finish(t, _error_row(t, _one_line(e)), False)  # not stored: a re-run tries again
+                else:
+                    finish(t, row, True)
+                fut.release()
+            if client.status != "running":
+                raise _ClusterLost(f"lost the connection to {where}")
+            if batch:
+                idle_since, last_look = None, time.monotonic()
+                continue
+            time.sleep(_POLL)
+            if time.monotonic() - last_look < 2 * _POLL:
+                continue
+            last_look = time.monotonic()
+            n = _connected_workers(client)
+            if n is None or client.status != "running":
+                raise _ClusterLost(f"lost the connection to {where}")
+            if n > 0:
+                idle_since = None
+            elif idle_since is None:
+                idle_since = time.monotonic()
+            elif time.monotonic() - idle_since > worker_timeout:
+                raise _ClusterLost(f"no Dask worker connected to {where} for {worker_timeout:g} s "
+                                   "(start workers, or give --worker-timeout more time)")
     except BaseException:
         for fut, _ in futures.values():
-            fut.cancel()
+            try:
+                fut.cancel()
+            except Exception:  # noqa: BLE001 - the scheduler may be gone
+                pass
         raise
     finally:
-        if own_client:
-            client.close()
-        if cluster is not None:
-            cluster.close()
+        try:
+            if own_client:
+                client.close(timeout=5)
+            if cluster is not None:
+                cluster.close(timeout=10)
+        except BaseException:  # noqa: BLE001 - closing a lost or interrupted cluster: nothing more to do
+            pass
+        quiet.__exit__(None, None, None)
     return mode, max(n_workers, 1)

@@ -28,6 +28,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ..core.validation import short_text
 from . import grid as _grid
 from .evaluate import METRICS, ROW_VERSION, DesignTask
 
@@ -169,8 +170,7 @@ def _tname(v: Any) -> str:
 
 
 def _show(v: Any) -> str:
-    s = repr(v)
-    return s if len(s) <= 60 else s[:57] + "..."
+    return short_text(v)
 
 
 def _number(v: Any, path: str) -> float:
@@ -189,9 +189,11 @@ def _check_table_keys(table: Mapping[str, Any], allowed: tuple[str, ...], path: 
     for k in table:
         if k in allowed:
             continue
-        close = difflib.get_close_matches(str(k), allowed, n=1, cutoff=0.6)
+        long = len(str(k)) > 64  # no suggestion, and cut when shown
+        close = [] if long else difflib.get_close_matches(str(k), allowed, n=1, cutoff=0.6)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
-        where = f"{path}.{k}" if path else str(k)
+        shown = short_text(str(k)) if long else str(k)
+        where = f"{path}.{shown}" if path else shown
         raise _Problem(where, f"unknown key{hint}; allowed keys here: {', '.join(allowed)}")
 
 
@@ -301,6 +303,18 @@ def _workspace(value: Any) -> dict[str, Any]:
     return out
 
 
+def _check_grid(mech: Any, ws: dict[str, Any]) -> None:
+    """The workspace grid of the base design (step and bounds) must be usable: a step no
+    design can use is an error of the study file, not a failure of every row."""
+    from ..solve.grid import default_grid
+
+    try:
+        default_grid(mech, ws["step"], ws["bounds"])
+    except ValueError as e:
+        raise _Problem("workspace.step" if ws["step"] is not None else "workspace.bounds",
+                       f"{e} (for the base design)") from None
+
+
 def _metrics(value: Any) -> tuple[str, ...]:
     if value is None:
         return tuple(METRICS)
@@ -321,6 +335,8 @@ def _metrics(value: Any) -> tuple[str, ...]:
 
 
 def _quoted(key: str) -> str:
+    if len(key) > 64:
+        return short_text(key)
     return key if key.replace("_", "").isalnum() else json.dumps(key)
 
 
@@ -394,6 +410,7 @@ def study_from_dict(data: Mapping[str, Any], source: str = "<dict>", base_dir: s
         axes = _grid_axes(data.get("grid"), mdata, mech)
         metrics = _metrics(data.get("metrics"))
         ws = _workspace(data.get("workspace"))
+        _check_grid(mech, ws)
         spec = StudySpec(name=name, source=source, mechanism_path=mpath, mechanism=mdata, grid=axes,
                          orientations=orient, metrics=metrics, workspace=ws)
         if spec.n_tasks > MAX_TASKS:
