@@ -72,8 +72,10 @@ class Jacobians:
     ``J_IK`` (``dx = J_IK drho``) and ``J_FK`` (``drho = J_FK dx``) are dimensionless: positions
     and prismatic/length inputs in units of the mechanism's length scale ``L_ref``, angles in
     radians.  ``None`` where the Jacobian does not exist (at an FK, resp. IK, singularity).
-    ``sing_ik``, ``sing_fk`` are the scaled determinants of the IK and FK Newton matrices,
-    smooth along a branch and zero at IK and FK singularities.
+    ``sing_ik``, ``sing_fk`` are the singularity measures (:mod:`flexkin.analysis.jacobian`):
+    dimensionless and scale-free, in [-1, 1], smooth along a branch and zero at IK and FK
+    singularities (``|sing_ik| = prod sigma_i / sqrt(1 + sigma_i^2)``, ``|sing_fk| =
+    prod 1 / sqrt(1 + sigma_i^2)`` with ``sigma_i`` the singular values of ``J_IK``).
     """
 
     J_IK: NDArray[np.float64] | None
