@@ -10,7 +10,8 @@
 
 from __future__ import annotations
 
-from typing import Any
+import dataclasses
+from typing import Any, Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -158,9 +159,11 @@ def distinct(system: System, X: NDArray, charts: NDArray, residual: NDArray,
 
 
 def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual: NDArray, max_mode: int,
-                     load: NDArray, diag: dict[str, Any] | None = None, fixed: str = "pose") -> list[Solution]:
+                     load: NDArray, diag: dict[str, Any] | None = None, fixed: str = "pose",
+                     progress: Callable[[float, str], None] | None = None) -> list[Solution]:
     """Reported solutions from refined candidates (module docstring); ``fixed`` is what the
-    analysis held (``"pose"`` for IK, ``"inputs"`` for FK): its Newton matrix gives ``condition``."""
+    analysis held (``"pose"`` for IK, ``"inputs"`` for FK): its Newton matrix gives ``condition``;
+    ``progress(fraction, stage)`` is told how far the stability analysis has got."""
     X = canonical(system, X)
     modes = rod_modes(system, X, charts)
     ok = np.all(modes <= max_mode, axis=1) & np.all(np.isfinite(X), axis=1)
@@ -169,7 +172,7 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
     if len(X) == 0:
         return []
     idx = distinct(system, X, charts, residual, diag)
-    sols = build_solutions(system, mech, X[idx], charts[idx], load, residual[idx], modes[idx], fixed)
+    sols = build_solutions(system, mech, X[idx], charts[idx], load, residual[idx], modes[idx], fixed, progress)
     escale = system.F_ref * system.L_ref
     sols.sort(key=lambda s: (s.modes, round(s.energy / escale, 9), tuple(s.inputs), tuple(s.pose)))
     return [_with_id(s, k + 1) for k, s in enumerate(sols)]
@@ -177,7 +180,7 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
 
 def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDArray,
                     residual: NDArray | None = None, modes: NDArray | None = None,
-                    fixed: str = "pose") -> list[Solution]:
+                    fixed: str = "pose", progress: Callable[[float, str], None] | None = None) -> list[Solution]:
     """:class:`~flexkin.results.Solution` objects (with stability, Jacobians and the independent
     check of :mod:`flexkin.analysis.verify`: ``verified``, ``condition``) for equilibria ``X``
     (n, n_unknowns) in ``charts`` (n, 3); residuals are recomputed when not given.  ``fixed``
@@ -191,7 +194,7 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
     modes_b, boundary = rod_modes(system, X, charts, with_boundary=True)
     if modes is None:
         modes = modes_b
-    stab = mechanism_stability(system, X, charts)
+    stab = _stability(system, X, charts, progress)
     jac = kinematic_jacobians(system, X, charts, load)
     check = verify_solutions(system, X, charts, load, modes, boundary, fixed)
     q, _ = system.unit_rods(X, charts)
@@ -210,6 +213,28 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
                              jac.item(j, system.L_ref), verified=bool(check.verified[j]),
                              condition=float(check.condition[j]), verify_error=float(check.error[j])))
     return sols
+
+
+#: equilibria per batch of the stability analysis when progress is reported
+PROGRESS_BATCH = 8
+
+
+def _stability(system: System, X: NDArray, charts: NDArray, progress: Callable[[float, str], None] | None):
+    """:func:`mechanism_stability`, in batches reporting ``progress`` when it is given (the
+    stability of each equilibrium is computed on its own, so the batches change nothing)."""
+    n = len(X)
+    if progress is None or n <= PROGRESS_BATCH:
+        out = mechanism_stability(system, X, charts)
+    else:
+        parts = []
+        for k in range(0, n, PROGRESS_BATCH):
+            progress(k / n, f"stability {k} of {n}")
+            parts.append(mechanism_stability(system, X[k:k + PROGRESS_BATCH], charts[k:k + PROGRESS_BATCH]))
+        out = type(parts[0])(**{f.name: np.concatenate([getattr(q, f.name) for q in parts])
+                                for f in dataclasses.fields(parts[0])})
+    if progress is not None:
+        progress(1.0, "Jacobians and verification")
+    return out
 
 
 def _with_id(s: Solution, k: int) -> Solution:

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.validation import as_triple, check_budget, check_max_mode
+from ..io.progress import Progress, substage
 from ..results import FKDiagnostics, KinematicsResult, Solution
 from ..system import System
 from .corrector import newton
@@ -31,7 +32,8 @@ __all__ = ["fk"]
 
 
 def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *, stride: int = 4,
-       stable_only: bool = False, time_budget: float | None = None) -> KinematicsResult:
+       stable_only: bool = False, time_budget: float | None = None,
+       progress: Progress | None = None) -> KinematicsResult:
     """All equilibrium poses of ``mech`` for actuator ``inputs`` under ``load`` (paper §5).
 
     Parameters
@@ -53,6 +55,10 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         Seconds for the whole FK: the global search stops early enough for its candidates to
         be refined in time; the result then says ``complete = False`` (and so it does when
         the search exhausts its node budget).
+    progress : callable, optional
+        Called as ``progress(fraction, stage)`` as the work advances (``fraction`` from 0 to 1,
+        during the search the share of the search space resolved;
+        :class:`flexkin.io.progress.ProgressBar` draws it).
 
     Returns
     -------
@@ -74,15 +80,20 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         return KinematicsResult((), True, msg, time.perf_counter() - t0, FKDiagnostics(), "fk", mech, given, wl,
                                 max_mode)
     if np.any(system.clamped):  # 9-D interval bounds exclude too little: the pose lattice
-        X, complete, stats = lattice_starts(system, u, w, max_mode, deadline=deadline)
+        X, complete, stats = lattice_starts(system, u, w, max_mode, deadline=deadline,
+                                            progress=substage(progress, 0.0, 0.6, "pose lattice"))
         nodes = stats.combinations
         diag["lattice_h"], diag["lattice_n_theta"] = stats.h, stats.n_theta
     else:
-        X, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=deadline)
+        X, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=deadline,
+                                       progress=substage(progress, 0.0, 0.6, "branch-and-bound"))
     diag["candidates"] = int(len(X))
     diag["search_complete"] = complete
     diag["nodes"] = int(nodes)
-    sols = refine_fk(system, mech, X, system.default_charts(len(X)), w, max_mode, diag)
+    if progress is not None:
+        progress(0.6, f"Newton on {len(X)} candidates")
+    sols = refine_fk(system, mech, X, system.default_charts(len(X)), w, max_mode, diag,
+                     substage(progress, 0.7, 1.0, "equilibria"))
     msg = "" if sols else "no equilibrium pose found for these inputs and load"
     if diag.get("continuum"):
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
@@ -98,14 +109,14 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
 
 
 def refine_fk(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
-              diag: dict[str, Any] | None = None) -> list[Solution]:
+              diag: dict[str, Any] | None = None, progress: Progress | None = None) -> list[Solution]:
     """Newton-refine FK candidates ``X`` (inputs held) and build the solutions."""
     res = newton(system, X, charts, load, "inputs")
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
     return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
-                            "inputs")
+                            "inputs", progress)
 
 
 def _assembly_obstruction(m: System, u: NDArray) -> str:

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.validation import as_triple, check_budget, check_max_mode
+from ..io.progress import Progress, substage
 from ..results import IKDiagnostics, KinematicsResult, Solution
 from ..system import System
 from .corrector import newton
@@ -39,7 +40,8 @@ def as_load(mech, load: ArrayLike | None) -> NDArray[np.float64]:
 
 
 def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *,
-       stable_only: bool = False, time_budget: float | None = None) -> KinematicsResult:
+       stable_only: bool = False, time_budget: float | None = None,
+       progress: Progress | None = None) -> KinematicsResult:
     """All equilibria of ``mech`` at platform ``pose`` under ``load`` (paper §4).
 
     Parameters
@@ -57,6 +59,9 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     time_budget : float, optional
         Seconds for the global search of step 2; when it runs out, the candidates found so
         far are refined and the result says ``complete = False``.
+    progress : callable, optional
+        Called as ``progress(fraction, stage)`` as the work advances (``fraction`` from 0 to 1;
+        :class:`flexkin.io.progress.ProgressBar` draws it).
 
     Returns
     -------
@@ -71,7 +76,8 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     deadline = None if time_budget is None else t0 + check_budget(time_budget)
     system = System.from_mechanism(mech)
     B = system.platform_points(pose[None])[0]
-    curves = leg_curves(mech, B, max_mode, theta=float(pose[2]))
+    curves = leg_curves(mech, B, max_mode, theta=float(pose[2]),
+                        progress=substage(progress, 0.0, 0.3, "geometric-condition curves"))
     diag: dict[str, Any] = {"branches": tuple(len(c) for c in curves)}
 
     # ---- step 2: equilibrium triples on the polylines (wrench space) -----------------------
@@ -91,6 +97,8 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         dim = lay.rod[i].stop - lay.rod[i].start
         p0s.append(cat(P0, (3,))); p1s.append(cat(P1, (3,)))
         zs.append((cat(Z0, (dim,)), cat(Z1, (dim,)))); us.append((cat(U0, ()), cat(U1, ())))
+    if progress is not None:
+        progress(0.3, "platform equilibrium on the curves")
     seg, s, complete = equilibrium_triples(p0s, p1s, w / wscale, deadline=deadline)
     diag["candidates"] = int(len(seg))
     diag["search_complete"] = complete
@@ -108,7 +116,10 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         X[:, lay.inputs.start + i] = ua + s[:, i] * (ub - ua)
 
     # ---- step 3: Newton on the full equations ----------------------------------------------
-    sols = refine_ik(system, mech, X, system.default_charts(len(X)), w, max_mode, diag)
+    if progress is not None:
+        progress(0.4, f"Newton on {len(X)} candidates")
+    sols = refine_ik(system, mech, X, system.default_charts(len(X)), w, max_mode, diag,
+                     substage(progress, 0.45, 1.0, "equilibria"))
     msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
     if diag.get("continuum"):
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
@@ -121,13 +132,14 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
 
 
 def refine_ik(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
-              diag: dict[str, Any] | None = None) -> list[Solution]:
+              diag: dict[str, Any] | None = None, progress: Progress | None = None) -> list[Solution]:
     """Newton-refine IK candidates ``X`` (pose held) and build the solutions."""
     res = newton(system, X, charts, load, "pose")
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
-    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag)
+    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
+                            progress=progress)
 
 
 def _empty_message(curves) -> str:
