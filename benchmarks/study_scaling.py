@@ -1,0 +1,104 @@
+"""Study throughput on 1 and 2 workers and the per-row overhead of the scheduling (docs/study.md).
+
+    python benchmarks/study_scaling.py [--repeat 3] [--json out.json]
+
+Two workloads, each run synchronously (this process, no Dask) and on a local Dask cluster of 1
+and 2 worker processes, interleaved, into fresh output directories, without figures:
+
+* ``example``: examples/study_3rfr.toml (18 rows of 0.3-1.5 s);
+* ``cheap``: 120 rows of the unit 3-RFR on a 0.5 m grid (a few ms of computing each), where
+  almost all the time is the per-row overhead.
+
+Per run: the wall time of ``run_study`` (cluster start-up and shutdown included), the steady
+rate (rows per second between the first and the last completed row, from ``on_row`` time
+stamps: no start-up), the sum of the rows' own ``elapsed_s``, and the overhead per row: the
+steady interval between rows times the number of workers, minus the mean ``elapsed_s``.  The
+1-minute load average before and after each run is printed: on a shared machine it decides
+what 2 workers can gain.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+CHEAP = f'''
+name = "cheap rows"
+mechanism = "{(ROOT / 'examples' / 'unit_3rfr.toml').as_posix()}"
+orientations = [20]
+[grid]
+"rod.length" = {{start = 0.9, stop = 1.1, num = 120}}
+[workspace]
+step = 0.5
+all_aspects = false
+seed_search = false
+'''
+
+
+def run(study: Path, mode: str) -> dict:
+    from flexkin.study import run_study
+
+    out = Path(tempfile.mkdtemp(prefix="flexkin_bench_study_"))
+    stamps: list[float] = []
+    kw = {"scheduler": "synchronous"} if mode == "sync" else {"workers": int(mode)}
+    load0 = os.getloadavg()[0]
+    t0, c0 = time.perf_counter(), time.process_time()
+    res = run_study(study, out, progress=False, figures=False, on_row=lambda r: stamps.append(time.perf_counter()),
+                    **kw)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    load1 = os.getloadavg()[0]
+    shutil.rmtree(out, ignore_errors=True)
+    n = len(stamps)
+    steady = (n - 1) / (stamps[-1] - stamps[0]) if n > 1 and stamps[-1] > stamps[0] else float("nan")
+    rows = [r for r in res.rows if r.get("elapsed_s") is not None]
+    mean_row = statistics.fmean(r["elapsed_s"] for r in rows)
+    workers = 1 if mode == "sync" else int(mode)
+    return {"mode": mode, "rows": n, "failed": res.n_failed, "wall_s": wall, "process_cpu_s": cpu,
+            "rows_per_s": n / wall, "steady_rows_per_s": steady, "sum_row_s": sum(r["elapsed_s"] for r in rows),
+            "mean_row_s": mean_row, "overhead_per_row_s": workers / steady - mean_row if steady == steady else None,
+            "load_before": load0, "load_after": load1}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--json", metavar="FILE")
+    ap.add_argument("--only", choices=("example", "cheap"))
+    a = ap.parse_args()
+    tmp = Path(tempfile.mkdtemp(prefix="flexkin_bench_studies_"))
+    (tmp / "cheap.toml").write_text(CHEAP)
+    studies = {"example": ROOT / "examples" / "study_3rfr.toml", "cheap": tmp / "cheap.toml"}
+    if a.only:
+        studies = {a.only: studies[a.only]}
+    from flexkin.study import run_study
+
+    for s in studies.values():  # warm-up: kernels loaded, Dask imported
+        d = Path(tempfile.mkdtemp())
+        run_study(s, d, scheduler="synchronous", progress=False, figures=False)
+        shutil.rmtree(d, ignore_errors=True)
+    results = []
+    for k in range(a.repeat):
+        for name, s in studies.items():
+            for mode in ("sync", "1", "2"):
+                r = run(s, mode)
+                r["workload"], r["repeat"] = name, k
+                results.append(r)
+                print(f"{name:8s} {mode:>4s}: {r['rows']} rows, wall {r['wall_s']:.2f} s ({r['rows_per_s']:.2f} rows/s), "
+                      f"steady {r['steady_rows_per_s']:.2f} rows/s, rows' own time {r['sum_row_s']:.2f} s "
+                      f"(mean {1e3 * r['mean_row_s']:.1f} ms), overhead/row "
+                      f"{1e3 * (r['overhead_per_row_s'] or float('nan')):.1f} ms, load {r['load_before']:.1f}->"
+                      f"{r['load_after']:.1f}", flush=True)
+    if a.json:
+        Path(a.json).write_text(json.dumps(results, indent=2))
+
+
+if __name__ == "__main__":
+    main()
