@@ -9,10 +9,12 @@ and 2 worker processes, interleaved, into fresh output directories, without figu
 * ``cheap``: 120 rows of the unit 3-RFR on a 0.5 m grid (a few ms of computing each), where
   almost all the time is the per-row overhead.
 
-Per run: the wall time of ``run_study`` (cluster start-up and shutdown included), the steady
+Per run: the wall time of ``run_study`` (cluster start-up and shutdown included) and its rows
+per second; the start-up (from the call to the first completed row, minus that row's own
+time: cluster start, workers importing flexkin and loading the compiled kernels); the steady
 rate (rows per second between the first and the last completed row, from ``on_row`` time
-stamps: no start-up), the sum of the rows' own ``elapsed_s``, and the overhead per row: the
-steady interval between rows times the number of workers, minus the mean ``elapsed_s``.  The
+stamps); the rows' own ``elapsed_s`` (sum and median); and the overhead per row: the steady
+interval between rows times the number of workers, minus the median ``elapsed_s``.  The
 1-minute load average before and after each run is printed: on a shared machine it decides
 what 2 workers can gain.
 """
@@ -51,19 +53,26 @@ def run(study: Path, mode: str) -> dict:
     kw = {"scheduler": "synchronous"} if mode == "sync" else {"workers": int(mode)}
     load0 = os.getloadavg()[0]
     t0, c0 = time.perf_counter(), time.process_time()
-    res = run_study(study, out, progress=False, figures=False, on_row=lambda r: stamps.append(time.perf_counter()),
-                    **kw)
+    first: list[float] = []
+
+    def on_row(row: dict) -> None:
+        stamps.append(time.perf_counter())
+        if not first:
+            first.append(float(row.get("elapsed_s") or 0.0))
+
+    res = run_study(study, out, progress=False, figures=False, on_row=on_row, **kw)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     load1 = os.getloadavg()[0]
     shutil.rmtree(out, ignore_errors=True)
     n = len(stamps)
     steady = (n - 1) / (stamps[-1] - stamps[0]) if n > 1 and stamps[-1] > stamps[0] else float("nan")
     rows = [r for r in res.rows if r.get("elapsed_s") is not None]
-    mean_row = statistics.fmean(r["elapsed_s"] for r in rows)
+    med_row = statistics.median(r["elapsed_s"] for r in rows)
     workers = 1 if mode == "sync" else int(mode)
     return {"mode": mode, "rows": n, "failed": res.n_failed, "wall_s": wall, "process_cpu_s": cpu,
-            "rows_per_s": n / wall, "steady_rows_per_s": steady, "sum_row_s": sum(r["elapsed_s"] for r in rows),
-            "mean_row_s": mean_row, "overhead_per_row_s": workers / steady - mean_row if steady == steady else None,
+            "rows_per_s": n / wall, "startup_s": stamps[0] - t0 - first[0] if n else None,
+            "steady_rows_per_s": steady, "sum_row_s": sum(r["elapsed_s"] for r in rows), "median_row_s": med_row,
+            "overhead_per_row_s": workers / steady - med_row if steady == steady else None,
             "load_before": load0, "load_after": load1}
 
 
@@ -92,8 +101,8 @@ def main() -> None:
                 r["workload"], r["repeat"] = name, k
                 results.append(r)
                 print(f"{name:8s} {mode:>4s}: {r['rows']} rows, wall {r['wall_s']:.2f} s ({r['rows_per_s']:.2f} rows/s), "
-                      f"steady {r['steady_rows_per_s']:.2f} rows/s, rows' own time {r['sum_row_s']:.2f} s "
-                      f"(mean {1e3 * r['mean_row_s']:.1f} ms), overhead/row "
+                      f"start-up {r['startup_s']:.2f} s, steady {r['steady_rows_per_s']:.2f} rows/s, rows' own time "
+                      f"{r['sum_row_s']:.2f} s (median {1e3 * r['median_row_s']:.1f} ms), overhead/row "
                       f"{1e3 * (r['overhead_per_row_s'] or float('nan')):.1f} ms, load {r['load_before']:.1f}->"
                       f"{r['load_after']:.1f}", flush=True)
     if a.json:
