@@ -140,6 +140,7 @@ def test_doc_block_runs(block: Block, scratch, monkeypatch, capsys):
         argv = shlex.split(cmd, comments=True)
         assert argv and argv[0] == "flexkin", (
             f"{block.id}: {cmd!r} is not a flexkin command: mark the block <!-- doc-test: skip: REASON -->")
+        assert argv[1:2] != ["explore"], f"{block.id}: {cmd!r} serves until stopped: mark the block skip"
         quiet = ["--quiet"] if argv[1] in ("ik", "fk", "path", "workspace", "refine", "study", "reproduce") else []
         code = main(argv[1:] + quiet)
         _, err = capsys.readouterr()
@@ -153,3 +154,98 @@ def test_the_runner_sees_the_marks():
     assert all(b.reason for b in blocks if b.mark)
     assert {b.mark for b in blocks} >= {"", "skip"}
     assert any(b.file == "README.md" and b.lang == "python" and not b.mark for b in blocks)
+
+
+# ---- what the docs claim, against the code (issue 27, item 11) --------------------------------
+def _readme_result_claims() -> list[tuple[list[str], list[str], list[str]]]:
+    """(result types, attributes claimed, attributes denied) of each statement of the README's
+    "Every solver returns" paragraph: the first sentence of each of its bullets, or the
+    paragraph itself (then about every result type)."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    start = text.index("Every solver returns")
+    para = text[start:text.index("\n\n", start)]
+    tail = text[start + len(para):].lstrip("\n")
+    bullets = re.split(r"\n- ", "\n" + tail.split("\n\n")[0])[1:] if tail.startswith("- ") else []
+    out = []
+    for stmt in (bullets or [para]):
+        first = re.split(r"\.(?:\s|$)", " ".join(stmt.split()), maxsplit=1)[0]
+        types = [t for t in re.findall(r"`([^`]+)`", first.partition(" no ")[0]) if t in RESULT_TYPES]
+        first = re.sub(r"\([^)]*\)", "", first)                     # other parentheticals are asides
+        pos, _, neg = first.partition(" no ")
+        names = [re.sub(r"\(.*\)$", "", t) for t in re.findall(r"`([^`]+)`", pos)]
+        attrs = [n for n in names if re.fullmatch(r"[a-z_]+", n)]
+        denied = [re.sub(r"\(.*\)$", "", t) for t in re.findall(r"`([^`]+)`", neg)]
+        out.append((types or list(SOLVER_RESULTS), attrs, denied))
+    return out
+
+
+def _result_types() -> dict:
+    import flexkin
+    from flexkin.analysis.feasibility import Feasibility
+    from flexkin.cosserat.results import RefineResult
+
+    return {"KinematicsResult": flexkin.KinematicsResult, "RodInverseResult": flexkin.RodInverseResult,
+            "PathResult": flexkin.PathResult, "Workspace": flexkin.Workspace, "RefineResult": RefineResult,
+            "Feasibility": Feasibility}
+
+
+RESULT_TYPES = ("KinematicsResult", "RodInverseResult", "PathResult", "Workspace", "RefineResult", "Feasibility")
+#: what the solvers return (check_feasibility is a check, not a solver)
+SOLVER_RESULTS = RESULT_TYPES[:-1]
+
+
+def test_readme_says_what_each_result_type_has():
+    """Every attribute the README lists for a result type exists on it, and every one it says
+    the type lacks does not."""
+    import dataclasses
+
+    classes = _result_types()
+
+    def has(cls, name: str) -> bool:
+        return name in {f.name for f in dataclasses.fields(cls)} or hasattr(cls, name)
+
+    claims = _readme_result_claims()
+    for types, attrs, denied in claims:
+        for t in types:
+            assert [a for a in attrs if not has(classes[t], a)] == [], (t, attrs)
+            assert [a for a in denied if has(classes[t], a)] == [], (t, denied)
+    assert len(claims) >= 4 and {t for types, _, _ in claims for t in types} >= set(SOLVER_RESULTS)
+
+
+def test_one_figure_for_the_cost_of_feasibility_and_only_on_request(capsys, examples_dir):
+    """README and docs/cli.md quote the same cost per solution, and say it is computed only
+    when asked for; ``ik --json`` without ``--feasibility`` indeed has no feasibility."""
+    import json
+
+    from flexkin.cli import main
+
+    costs = set()
+    for name in ("README.md", "docs/cli.md"):
+        text = " ".join((ROOT / name).read_text(encoding="utf-8").split())
+        for sentence in re.split(r"(?<=[.;])\s", text):
+            if "feasibility" in sentence.lower() or "feasible" in sentence.lower():
+                costs |= {float(v) for v in re.findall(r"about (\d+(?:\.\d+)?) ms", sentence)}
+        assert "computed although `--feasibility` was not asked" not in text
+    assert len(costs) == 1, costs
+    assert main(["ik", str(examples_dir / "unit_3rfr.toml"), "--pose", "0.05", "0.02", "20", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["solutions"] and all("feasible" not in s and "feasibility" not in s for s in d["solutions"])
+
+
+def test_the_documented_numpy_reader_reads_a_shape_file(tmp_path, examples_dir):
+    """docs/cli.md names the numpy call that reads a ``--shapes`` CSV: it must read one."""
+    import numpy as np
+
+    import flexkin
+    from flexkin.io import write_shapes
+
+    text = " ".join((ROOT / "docs" / "cli.md").read_text(encoding="utf-8").split())
+    calls = re.findall(r"`numpy\.(loadtxt|genfromtxt)(\([^`]*\))?`", text)
+    assert calls
+    mech = flexkin.load_mechanism(examples_dir / "unit_3rfr.toml")
+    f = str(tmp_path / "shapes.csv")
+    write_shapes(f, flexkin.ik(mech, (0.05, 0.02, np.radians(20))))
+    for fn, args in calls:
+        call = f"np.{fn}{args or '(f)'}"
+        a = eval(call, {"np": np, "f": f})
+        assert a.shape[0] == 8 * 3 * 101 and a.shape[1] == 7, call

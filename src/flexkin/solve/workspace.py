@@ -948,7 +948,8 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
         Largest d-mode of the seed IK (along the wave the rods follow their branch into
         whatever d-modes it takes).
     all_aspects : bool
-        Start from every stable seed solution (default) or only the first stable one.
+        Start from every stable seed solution (default) or only the first stable one (with
+        ``constrained``, the first stable one that meets the constraints).
     progress : bool or callable
         ``True`` shows a tqdm progress bar; a callable receives the number of continuation
         steps of each wave.
