@@ -239,7 +239,7 @@ def test_fold_merges_a_pair_near_the_workspace_boundary(mechs):
     folds = [s for s in r.solutions if s.status == "fold"]
     assert len(folds) == 2
     a, b = folds
-    assert a.merged_with == b.index and b.merged_with == a.index
+    assert a.merged_with == b.id and b.merged_with == a.id
     assert 0.0 < a.fold_tau < 1.0 and abs(a.fold_tau - b.fold_tau) < 1e-6
     assert a.pose is None and a.rods == () and a.stable is None
     assert r.diagnostics["multistart_starts"] > 0 and r.born == ()
@@ -247,10 +247,10 @@ def test_fold_merges_a_pair_near_the_workspace_boundary(mechs):
     r2 = refine(mech, res, params=p, gravity=(0.0, 9.81))
     assert all(s.status == "refined" for s in r2.solutions)
     # given only one of the pair, its branch still ends at the fold, partner not listed
-    r3 = refine(mech, [res.solutions[a.index]], params=p, gravity=G, problem="ik")
+    r3 = refine(mech, [res.solutions[a.id - 1]], params=p, gravity=G, problem="ik")
     assert r3.solutions[0].status == "fold" and r3.solutions[0].merged_with is None
     assert abs(r3.solutions[0].fold_tau - a.fold_tau) < 1e-6
-    REPORT["cosserat fold test"] = f"pair {a.index},{b.index} merges at tau = {a.fold_tau:.8f}"
+    REPORT["cosserat fold test"] = f"pair {a.id},{b.id} merges at tau = {a.fold_tau:.8f}"
 
 
 def _toy(keys, Z, tau, jac, sign):

@@ -65,3 +65,46 @@ def test_study_has_quiet():
 
     a = _build_parser().parse_args(["study", "x.toml", "--out", "d", "--quiet"])
     assert a.quiet is True
+
+
+# ---- issue 27, item 9: ik, fk and path show a bar that advances, not a ticker ------------------
+IK = ["ik", EX / "unit_3rfr.toml", "--pose", "0.05", "0.02", "20"]
+
+
+@pytest.mark.parametrize("args", [IK, FK, PATH], ids=["ik", "fk", "path"])
+def test_ik_fk_and_path_draw_a_bar_that_advances(monkeypatch, capsys, args):
+    """The bar shows the share of the work done (several percentages, up to at least 85 %) and
+    the stage, not only the elapsed time."""
+    import re
+
+    shown = _run(monkeypatch, capsys, args, tty=True)
+    done = sorted({int(p) for p in re.findall(r"(\d+)%\|", shown)})
+    assert len(done) >= 3 and done[-1] >= 85, shown[-400:]
+    assert re.search(r"flexkin (ik|fk|path)[^:\r]*: [a-zA-Z]", shown), shown[-400:]
+
+
+def test_solvers_report_progress_in_order_and_print_nothing(capsys, examples_dir):
+    """ik, fk and follow_path call ``progress(fraction, stage)`` with fractions that never go
+    back, from the start to 1 (the last report), and write nothing themselves."""
+    import numpy as np
+
+    import flexkin
+
+    mech = flexkin.load_mechanism(examples_dir / "unit_3rfr.toml")
+    capsys.readouterr()
+    runs = {}
+    for name, call in (("ik", lambda cb: flexkin.ik(mech, (0.05, 0.02, np.radians(20)), progress=cb)),
+                       ("fk", lambda cb: flexkin.fk(mech, np.radians([90.46, -139.47, -12.03]), progress=cb)),
+                       ("path", lambda cb: flexkin.follow_path(mech, (0.05, 0.02, np.radians(20)),
+                                                               (0.1, 0.02, np.radians(20)), steps=5, progress=cb))):
+        seen = []
+        res = call(lambda f, stage: seen.append((f, stage)))
+        runs[name] = seen
+        assert len(seen) >= 3, (name, seen)
+        fr = [f for f, _ in seen]
+        assert all(0.0 <= f <= 1.0 for f in fr) and fr == sorted(fr), (name, seen)
+        assert all(isinstance(s, str) and s for _, s in seen)
+        assert res is not None
+    assert runs["path"][-1][0] >= 0.9 and runs["ik"][-1][0] == 1.0
+    out, err = capsys.readouterr()
+    assert out == "" and err == ""

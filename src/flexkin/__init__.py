@@ -17,8 +17,11 @@ from __future__ import annotations
 
 from typing import Any
 
+from . import _moved
 from .errors import FlexkinWarning, MechanismError
 from .mechanism import Leg, Mechanism, Platform, Rod, load_mechanism, mechanism_from_dict
+
+_moved.install()  # import paths of earlier releases keep working for one release (CHANGELOG.md)
 
 __version__ = "0.2.0"
 

@@ -133,8 +133,9 @@ def _build_parser() -> argparse.ArgumentParser:
         _add_common_kinematics(k, name)
         k.add_argument("--json", action="store_true", help="print the SPEC §4 JSON object")
         k.add_argument("--feasibility", action="store_true",
-                       help="with --json: each solution's feasibility verdict and reasons (collisions, strain, "
-                            "input ranges; about 5 ms per solution, so only on request; always with --feasible-only)")
+                       help="each solution's feasibility verdict and reasons (collisions, strain, input ranges): "
+                            "a column of the table, or keys of the --json objects (always with --feasible-only); "
+                            "computed only on request")
         k.add_argument("--plot", metavar="FILE",
                        help="figure with one panel per solution (pages of 20: FILE, FILE_2, ...)")
         k.add_argument("--shapes", metavar="FILE",
@@ -325,7 +326,7 @@ def _cmd_workspace(a) -> int:
             out.append({"theta": float(math.degrees(ws.theta)), "step": ws.step, "seed": list(ws.seed),
                         "elapsed": ws.elapsed, "complete": ws.complete, "message": ws.message, "region": ws.region,
                         "constraints": list(ws.constraints), "constrained": ws.constrained, "grown": ws.grown,
-                        "aspects": [{"seeds": [s + 1 for s in mp.seeds], "cells": mp.area_cells,
+                        "aspects": [{"seeds": list(mp.seeds), "cells": mp.area_cells,
                                      "area": mp.area_cells * ws.step**2,
                                      "feasible_cells": mp.feasible_cells,
                                      "feasible_area": mp.feasible_cells * ws.step**2,
@@ -383,15 +384,15 @@ def _count(name: str, lo: int = 1):
 
 def _cmd_path(a) -> int:
     from .io import write_shapes
-    from .io.progress import Ticker
+    from .io.progress import ProgressBar
     from .solve.path import follow_path
 
     mech = _load_mech(a.mechanism)
     start = (a.start[0], a.start[1], math.radians(a.start[2]))
     end = (a.end[0], a.end[1], math.radians(a.end[2]))
-    with Ticker(f"flexkin path: {a.steps} steps", enabled=_progress(a)):
+    with ProgressBar(f"flexkin path ({a.steps} steps)", enabled=_progress(a)) as bar:
         res = follow_path(mech, start, end, steps=a.steps, load=a.load, solution=a.solution, max_mode=a.max_mode,
-                          time_budget=a.time_budget, feasibility=True)
+                          time_budget=a.time_budget, feasibility=True, progress=bar)
         d = res.to_dict(feasibility=True)
     if a.json:
         print(_dump(d))
@@ -539,15 +540,16 @@ def _cmd_rod(a) -> int:
 
 
 def _kinematics(a, mech):
-    """The IK or FK result of ``a`` (with progress display) and a one-line description."""
-    from .io.progress import Ticker
+    """The IK or FK result of ``a`` (with a progress bar) and a one-line description."""
+    from .io.progress import ProgressBar
 
     if getattr(a, "pose", None) is not None:
         from .solve.ik import ik
 
         pose = (a.pose[0], a.pose[1], math.radians(a.pose[2]))
-        with Ticker("flexkin ik: all equilibria", enabled=_progress(a)):
-            res = ik(mech, pose, load=a.load, max_mode=a.max_mode, time_budget=getattr(a, "time_budget", None))
+        with ProgressBar("flexkin ik", enabled=_progress(a)) as bar:
+            res = ik(mech, pose, load=a.load, max_mode=a.max_mode, time_budget=getattr(a, "time_budget", None),
+                     progress=bar)
         what = f"inverse kinematics at pose ({a.pose[0]:g} m, {a.pose[1]:g} m, {a.pose[2]:g} deg)"
         return res, what
     from .mechanism.plausibility import revolute_inputs_look_like_radians
@@ -562,8 +564,9 @@ def _kinematics(a, mech):
         if leg.actuation == "revolute":
             _angle_arg(v, f"--inputs U{i + 1}")
     u = [float(leg.from_display(v)) for v, leg in zip(a.inputs, mech.legs)]
-    with Ticker("flexkin fk: searching all equilibria", enabled=_progress(a)):
-        res = fk(mech, u, load=a.load, max_mode=a.max_mode, time_budget=getattr(a, "time_budget", None))
+    with ProgressBar("flexkin fk", enabled=_progress(a)) as bar:
+        res = fk(mech, u, load=a.load, max_mode=a.max_mode, time_budget=getattr(a, "time_budget", None),
+                 progress=bar)
     units = [leg.input_unit for leg in mech.legs]
     what = "forward kinematics at inputs (" + ", ".join(f"{v:g} {un}" for v, un in zip(a.inputs, units)) + ")"
     return res, what
@@ -655,7 +658,7 @@ def _cmd_kinematics(a) -> int:
               f"in {res.elapsed:.2f} s" + ("" if res.complete else " (search incomplete)"))
         if len(res):
             print("per d-mode combination: " + ", ".join(f"{k}: {v}" for k, v in sorted(res.by_modes().items())))
-            print(res.table())
+            print(res.table(feasibility=a.feasibility))
         if ref is not None:
             print(_refine_table(res, ref))
     if not len(res) or not res.complete:
@@ -701,7 +704,6 @@ def _cmd_refine(a) -> int:
     if a.json:
         d = ref.to_dict()
         for e, s in zip(d["solutions"], res.solutions):
-            e["id"] = s.id
             e["kirchhoff_modes"] = list(s.modes)
         if res.problem == "ik":
             d["pose"] = [res.given[0], res.given[1], float(np.degrees(res.given[2]))]

@@ -72,8 +72,10 @@ class Jacobians:
     ``J_IK`` (``dx = J_IK drho``) and ``J_FK`` (``drho = J_FK dx``) are dimensionless: positions
     and prismatic/length inputs in units of the mechanism's length scale ``L_ref``, angles in
     radians.  ``None`` where the Jacobian does not exist (at an FK, resp. IK, singularity).
-    ``sing_ik``, ``sing_fk`` are the scaled determinants of the IK and FK Newton matrices,
-    smooth along a branch and zero at IK and FK singularities.
+    ``sing_ik``, ``sing_fk`` are the singularity measures (:mod:`flexkin.analysis.jacobian`):
+    dimensionless and scale-free, in [-1, 1], smooth along a branch and zero at IK and FK
+    singularities (``|sing_ik| = prod sigma_i / sqrt(1 + sigma_i^2)``, ``|sing_fk| =
+    prod 1 / sqrt(1 + sigma_i^2)`` with ``sigma_i`` the singular values of ``J_IK``).
     """
 
     J_IK: NDArray[np.float64] | None
@@ -376,21 +378,36 @@ class KinematicsResult(Result):
             for s, ix in zip(todo, performance_indices(todo)):
                 s.__dict__["indices"] = ix  # the functools.cached_property slot
 
-    def table(self) -> str:
-        """Human-readable table of the solutions."""
+    def table(self, feasibility: bool = False) -> str:
+        """Human-readable table of the solutions.
+
+        Parameters
+        ----------
+        feasibility : bool
+            Add a ``feasible`` column (``yes``/``no``) followed by the reasons
+            (:meth:`feasibility`, computed on demand).
+
+        Returns
+        -------
+        str
+        """
         units = [leg.input_unit for leg in self.mechanism.legs]
         head = (f"{'#':>3} {'modes':>5} {'x [m]':>10} {'y [m]':>10} {'th [deg]':>9} "
                 + " ".join(f"{'u' + str(i + 1) + ' [' + u + ']':>11}" for i, u in enumerate(units))
                 + f" {'energy [J]':>11} {'stable':>6} {'residual':>9}")
+        if feasibility:
+            head += f" {'feasible':>8}  reasons"
         lines = [head, "-" * len(head)]
-        for s in self.solutions:
+        feas = self.feasibility() if feasibility else (None,) * len(self.solutions)
+        for s, f in zip(self.solutions, feas):
             u = s.inputs_display()
             st = "?" if s.stable is None else ("yes" if s.stable else "no")
-            lines.append(
-                f"{s.id:>3} {s.mode_label:>5} {s.pose[0]:>10.5f} {s.pose[1]:>10.5f} {np.degrees(s.pose[2]):>9.3f} "
-                + " ".join(f"{v:>11.5f}" for v in u)
-                + f" {s.energy:>11.4e} {st:>6} {s.residual:>9.1e}"
-            )
+            row = (f"{s.id:>3} {s.mode_label:>5} {s.pose[0]:>10.5f} {s.pose[1]:>10.5f} {np.degrees(s.pose[2]):>9.3f} "
+                   + " ".join(f"{v:>11.5f}" for v in u)
+                   + f" {s.energy:>11.4e} {st:>6} {s.residual:>9.1e}")
+            if f is not None:
+                row += f" {'yes' if f.feasible else 'no':>8}  {'; '.join(f.reasons)}".rstrip()
+            lines.append(row)
         return "\n".join(lines)
 
     def plot(self, path: str | None = None, **kwargs: Any):

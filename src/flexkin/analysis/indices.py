@@ -499,7 +499,8 @@ def singularity_distance_along_path(poses: ArrayLike, sing_ik: ArrayLike, sing_f
     poses : (n, 3) array_like
         The path's poses ``(x, y, theta)`` (m, m, rad), e.g. ``PathResult.poses``.
     sing_ik, sing_fk : (n,) array_like
-        Scaled determinants of the IK and FK Newton matrices (``PathResult.sing_ik``, ``sing_fk``).
+        The singularity measures (``PathResult.sing_ik``, ``sing_fk``,
+        :mod:`flexkin.analysis.jacobian`), or any functions that change sign at the singularities.
     characteristic_length : float
         ``L_c`` (m) weighting the orientation.
 

@@ -16,8 +16,28 @@ kinematics) and ``J_IK J_FK = I`` where both exist.  An **IK singularity** is wh
 is singular (``det J_IK -> 0``, ``J_FK`` blows up; the IK solution folds, typically on the
 workspace boundary), an **FK singularity** where ``A_FK`` is singular (``det J_FK -> 0``;
 with the actuators locked the platform gains a zero-stiffness direction, where stability
-changes).  ``det A_IK`` and ``det A_FK`` scaled by their column norms are smooth along a
-branch and change sign at those singularities.
+changes).
+
+**Singularity measures** ``sing_ik``, ``sing_fk`` (dimensionless, in [-1, 1], scale-free).
+Near an equilibrium the equilibria form a 3-dimensional manifold in the 6-dimensional space of
+(pose, inputs), in the units below; let ``T`` be its tangent space, spanned by the columns of
+``[J_IK; I]`` (pose rows first).  Then
+
+    |sing_ik| = the factor by which the orthogonal projection onto the pose coordinates
+                scales 3-volumes of T  = prod_i sigma_i / sqrt(1 + sigma_i^2),
+    |sing_fk| = the same for the projection onto the inputs = prod_i 1 / sqrt(1 + sigma_i^2),
+
+with ``sigma_i`` the singular values of ``J_IK``: the product of the cosines of the principal
+angles between ``T`` and the pose (resp. input) coordinate space.  ``sing_ik = 0`` exactly
+where an input motion leaves the pose fixed (IK singularity), ``sing_fk = 0`` exactly where
+the pose moves with the inputs locked (FK singularity); both are 1 at most, and
+``|sing_fk / sing_ik| = |det J_FK|``.  They depend only on the equilibria (not on the rods'
+chart, the equations' scaling, EI or the mechanism's size: a copy scaled by s with any EI has
+the same values at the scaled poses), and they are computed from the blocks of the Newton
+matrices, so they are finite and smooth through both singularities: ``T`` is the kernel of the
+3 x 6 matrix ``M = Q^T [G_x  G_rho]`` with ``Q`` an orthonormal basis of the complement of the
+range of ``G_z``.  The sign is that of ``det A_IK`` (resp. ``det A_FK``), which changes at the
+singularity, so a sign change between two points of a branch locates it.
 
 Units: dimensionless.  Positions and prismatic/length inputs are measured in the
 mechanism's length scale ``L_ref`` (:attr:`flexkin.mechanism.Mechanism.length_scale`),
@@ -35,7 +55,7 @@ from numpy.typing import NDArray
 from ..results import Jacobians
 from ..system import System
 
-__all__ = ["JacobianArrays", "kinematic_jacobians", "system_blocks"]
+__all__ = ["JacobianArrays", "kinematic_jacobians", "system_blocks", "singularity_measures"]
 
 #: condition number beyond which a Newton matrix counts as singular
 SINGULAR_COND = 1e14
@@ -68,10 +88,40 @@ def system_blocks(system: System, X: NDArray, charts: NDArray, load: NDArray
     return J[:, :, :lay.n_rod], J[:, :, lay.pose] * sx, J[:, :, lay.inputs] * su
 
 
-def _scaled_det(A: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``det A`` divided by the product of its column norms (in [-1, 1], same sign)."""
-    norms = np.linalg.norm(A, axis=1)
-    return np.linalg.det(A / np.where(norms > 0, norms, 1.0)[:, None, :])
+def singularity_measures(Gz: NDArray[np.float64], Gx: NDArray[np.float64], Gu: NDArray[np.float64]
+                         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The scale-free singularity measures ``(sing_ik, sing_fk)`` (module docstring) of ``n``
+    equilibria from the blocks of :func:`system_blocks`.
+
+    Parameters
+    ----------
+    Gz, Gx, Gu : ndarray (n, n_equations, .)
+        Derivatives of the scaled equations with respect to the chart coordinates, the
+        dimensionless pose and the dimensionless inputs.
+
+    Returns
+    -------
+    sing_ik, sing_fk : ndarray (n,)
+        In [-1, 1]; zero at an IK (resp. FK) singularity, with the sign of ``det A_IK``
+        (resp. ``det A_FK``).
+    """
+    n, m, nz = Gz.shape
+    if n == 0:
+        return np.zeros(0), np.zeros(0)
+    with np.errstate(all="ignore"):
+        Q, _ = np.linalg.qr(Gz, mode="complete")                        # (n, m, m)
+        M = np.swapaxes(Q[:, :, nz:], 1, 2) @ np.concatenate([Gx, Gu], axis=2)   # (n, 3, 6): T = ker M
+        # an orthonormal basis of the row space of M (= the orthogonal complement of T): the
+        # projection of T onto a coordinate 3-space scales volumes by |det| of the complementary
+        # 3x3 block of that basis
+        B, _ = np.linalg.qr(np.swapaxes(M, 1, 2))                       # (n, 6, 3)
+        mag_fk = np.abs(np.linalg.det(B[:, :3, :]))                     # pose rows: inputs locked
+        mag_ik = np.abs(np.linalg.det(B[:, 3:, :]))                     # input rows: pose held
+        sign_ik = np.linalg.slogdet(np.concatenate([Gz, Gu], axis=2))[0]
+        sign_fk = np.linalg.slogdet(np.concatenate([Gz, Gx], axis=2))[0]
+    ok = np.all(np.isfinite(M), axis=(1, 2))
+    return (np.where(ok, sign_ik * np.minimum(mag_ik, 1.0), np.nan),
+            np.where(ok, sign_fk * np.minimum(mag_fk, 1.0), np.nan))
 
 
 @dataclass(frozen=True)
@@ -82,7 +132,8 @@ class JacobianArrays:
     ----------
     J_IK, J_FK : (n, 3, 3); ``inf`` entries where they do not exist.
     det_ik, det_fk, cond : (n,)
-    sing_ik, sing_fk : (n,) scaled ``det A_IK`` and ``det A_FK``.
+    sing_ik, sing_fk : (n,) the singularity measures (module docstring): dimensionless,
+        scale-free, in [-1, 1], zero at IK (resp. FK) singularities.
     """
 
     J_IK: NDArray[np.float64]
@@ -146,4 +197,5 @@ def kinematic_jacobians(system: System, X: NDArray, charts: NDArray, load: NDArr
         cond = np.full(n, np.inf)
         if np.any(fin_fk):
             cond[fin_fk] = np.linalg.cond(J_FK[fin_fk])
-    return JacobianArrays(J_IK, J_FK, det_ik, det_fk, cond, _scaled_det(A_ik), _scaled_det(A_fk))
+    sing_ik, sing_fk = singularity_measures(Gz, Gx, Gu)
+    return JacobianArrays(J_IK, J_FK, det_ik, det_fk, cond, sing_ik, sing_fk)

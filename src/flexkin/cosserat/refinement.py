@@ -301,7 +301,7 @@ def refine(mech: Any, solutions: Any, *, params: CosseratParams | Sequence[Cosse
     results = []
     for k, s in enumerate(sols):
         e = ends[k]
-        results.append(_result(prob, k, ("main", k), s, e, data.get(("main", k)), ends, z0, dup_final))
+        results.append(_result(prob, k, ("main", k), s, e, data.get(("main", k)), ends, z0, dup_final, sols))
     kept = [key for key, e in born_ends.items() if e.status in ("reached", "returned")]
     position = {key: j for j, key in enumerate(kept)}
     born = tuple(_born_result(prob, key, born_ends[key], data[key], born_z, position) for key in kept)
@@ -469,13 +469,19 @@ def _stab_fields(v):
                 stability_note=v.note)
 
 
-def _result(prob, k, key, sol, e: BranchEnd, d, ends, z0, dup) -> RefinedSolution:
+def _sid(sol: Any, k: int) -> int:
+    """The id of input solution ``sol`` (its 1-based position ``k + 1`` when it has none)."""
+    sid = getattr(sol, "id", 0)
+    return int(sid) if isinstance(sid, (int, np.integer)) and sid >= 1 else k + 1
+
+
+def _result(prob, k, key, sol, e: BranchEnd, d, ends, z0, dup, sols: Sequence[Any] = ()) -> RefinedSolution:
     md = prob.md
     kpose = tuple(float(x) for x in sol.pose)
     kin = tuple(float(x) for x in sol.inputs)
     kst = getattr(sol, "stable", None)
     fold_tau = e.folds[0].tau if e.folds else None
-    common = dict(index=k, kirchhoff_pose=kpose, kirchhoff_inputs=kin, kirchhoff_stable=kst,
+    common = dict(id=_sid(sol, k), position=k, kirchhoff_pose=kpose, kirchhoff_inputs=kin, kirchhoff_stable=kst,
                   continuation_steps=e.steps, evaluations=e.evaluations, fold_tau=fold_tau)
     if e.status == "reached":
         dpos, drot, du = _shifts(md, d["pose"], d["inputs"], kpose, kin)
@@ -500,7 +506,7 @@ def _result(prob, k, key, sol, e: BranchEnd, d, ends, z0, dup) -> RefinedSolutio
         for j, zj in z0.items():
             if j != k and prob.same_fixed(key, ("main", j)) and float(
                     np.max(np.abs(prob.canon(key, e.z) - prob.canon(("main", j), zj)))) < _SAME:
-                merged = j
+                merged = _sid(sols[j], j) if j < len(sols) else j + 1
                 break
         note = (f"branch turned back at a fold (tau = {fold_tau:.6g}) and returned to the Kirchhoff model at "
                 + (f"solution {merged}" if merged is not None else "a Kirchhoff solution not in the input")
@@ -527,7 +533,7 @@ def _born_result(prob, key, e: BranchEnd, d, born_z, position) -> RefinedSolutio
         for okey, oz in born_z.items():
             if okey != key and okey in position and prob.same_fixed(key, okey) and float(
                     np.max(np.abs(prob.canon(key, e.z) - prob.canon(okey, oz)))) < _SAME:
-                partner = position[okey]
+                partner = position[okey] + 1
         note = ("exists only in the refined model: born at a fold"
                 + (f" at tau = {fold_tau:.6g}" if fold_tau is not None else "")
                 + (f" together with born solution {partner}" if partner is not None else ""))
@@ -536,7 +542,7 @@ def _born_result(prob, key, e: BranchEnd, d, born_z, position) -> RefinedSolutio
         note = "connected to a Kirchhoff solution that was not in the input"
     ver = d["verification"]
     return RefinedSolution(
-        index=None, status=status, reached=True, tau_end=1.0, fold_tau=fold_tau, merged_with=partner,
+        id=None, status=status, reached=True, tau_end=1.0, fold_tau=fold_tau, merged_with=partner,
         pose=d["pose"], inputs=d["inputs"], kirchhoff_pose=None, kirchhoff_inputs=None, position_shift=None,
         rotation_shift_deg=None, input_shift=None, rods=d["rods"], kirchhoff_stable=None,
         residual=d["residual"], verification_residual=ver, verified=bool(ver <= _VERIFY),

@@ -60,7 +60,9 @@ class RefinedSolution:
 
     Attributes
     ----------
-    index : position of the Kirchhoff solution in the input (``None`` for a born solution).
+    id : the Kirchhoff solution's id (:attr:`flexkin.Solution.id`, 1-based, the same as in the
+        IK/FK table and JSON; its 1-based position in the input when it has none), ``None``
+        for a born solution.
     status : ``"refined"`` (branch reached tau = 1), ``"fold"`` (the branch turned back at a
         fold: the solution merged with another one and does not exist in the refined model),
         ``"born"`` (exists only in the refined model: its branch, followed down in tau, turns at
@@ -70,8 +72,9 @@ class RefinedSolution:
     reached : the refined solution exists (status refined / born / unlisted).
     tau_end : tau where the branch ended (1 when reached; the fold's tau for ``"fold"``).
     fold_tau : tau of the first fold met (``None`` without fold); for ``"born"`` the birth tau.
-    merged_with : index of the input solution this branch met at its fold (``"fold"``), or of the
-        refined solution forming the born pair; ``None`` when unknown / not applicable.
+    merged_with : id of the input solution this branch met at its fold (``"fold"``); for a born
+        solution, the 1-based position in ``born`` of the one forming its pair; ``None`` when
+        unknown / not applicable.
     pose, inputs : refined pose (m, m, rad) and inputs (SI); ``None`` unless reached.
     kirchhoff_pose, kirchhoff_inputs : the starting Kirchhoff values (``None`` for born).
     position_shift : |P_refined - P_Kirchhoff| (m); rotation_shift_deg : theta change (deg);
@@ -89,7 +92,7 @@ class RefinedSolution:
     continuation_steps, evaluations : work done on this branch.  note : diagnostics.
     """
 
-    index: int | None
+    id: int | None
     status: str
     reached: bool
     tau_end: float
@@ -117,6 +120,17 @@ class RefinedSolution:
     continuation_steps: int
     evaluations: int
     note: str = ""
+    position: int | None = field(default=None, repr=False)
+
+    @property
+    def index(self) -> int | None:
+        """Deprecated (flexkin 0.3): the 0-based position of the Kirchhoff solution in the input;
+        use :attr:`id`, the solution's 1-based id."""
+        import warnings
+
+        warnings.warn("RefinedSolution.index is deprecated and will be removed in flexkin 0.4: use .id, the "
+                      "Kirchhoff solution's 1-based id", FutureWarning, stacklevel=2)
+        return self.position
 
     @property
     def modes(self) -> tuple[int, ...]:
@@ -135,7 +149,7 @@ class RefinedSolution:
             return None if p is None else [p[0], p[1], float(math.degrees(p[2]))]
 
         return {
-            "index": self.index, "status": self.status, "reached": self.reached, "tau_end": self.tau_end,
+            "id": self.id, "status": self.status, "reached": self.reached, "tau_end": self.tau_end,
             "fold_tau": self.fold_tau, "merged_with": self.merged_with, "pose": pose(self.pose),
             "inputs": inputs(self.inputs), "kirchhoff_pose": pose(self.kirchhoff_pose),
             "kirchhoff_inputs": inputs(self.kirchhoff_inputs), "position_shift": self.position_shift,

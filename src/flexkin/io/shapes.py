@@ -15,8 +15,9 @@ theta_deg  deg     tangent angle of the centre line, world frame, counter-clockw
 moment_Nm  N m     bending moment ``EI theta'(s)`` (counter-clockwise positive)
 ========== ======= ==================================================================
 
-The CSV starts with ``#`` comment lines (mechanism, problem, units; ``pandas.read_csv(...,
-comment="#")`` and ``numpy.loadtxt`` skip them).  The NPZ holds arrays of shape
+The CSV starts with ``#`` comment lines (mechanism, problem, units), then a header row
+(``pandas.read_csv(..., comment="#")`` reads it with the names, ``numpy.loadtxt(...,
+delimiter=",", comments=("#", "solution"))`` the numbers).  The NPZ holds arrays of shape
 ``(n_solutions, 3, n_points)`` for ``s_m``, ``x_m``, ``y_m``, ``theta_deg``, ``moment_Nm``
 and, per solution, ``solution``, ``modes``, ``pose`` (x m, y m, theta deg), ``inputs``
 (display units, ``input_units``), ``stable`` (1, 0, or -1 undecided), and ``t`` for a path.

@@ -591,7 +591,8 @@ class Mechanism:
         Returns
         -------
         str
-            Name, kind, a legs table, the platform, the rods, load and limits.
+            Name, kind, a legs table (actuation, origin, guide angle, range, rod, platform joint
+            and a clamped joint's tip angle), the platform, the rods, load and limits.
         """
         lines = [f"{self.name}  [{self.kind}]"]
         if self.source:
@@ -599,7 +600,8 @@ class Mechanism:
         lines.append("  legs:")
         lines.append(
             f"    {'#':>2}  {'actuation':<10} {'origin x [m]':>13} {'origin y [m]':>13} "
-            f"{'angle [deg]':>11}  {'range':<24} {'L [m]':>8} {'EI [N m^2]':>11} {'radius [m]':>11}"
+            f"{'angle [deg]':>11}  {'range':<24} {'L [m]':>8} {'EI [N m^2]':>11} {'radius [m]':>11}  "
+            f"{'joint':<8} {'tip angle [deg]':>15}"
         )
         for i, leg in enumerate(self.legs):
             if leg.range is None:
@@ -610,9 +612,10 @@ class Mechanism:
             ang = "-" if leg.actuation == "revolute" and leg.angle == 0.0 else f"{math.degrees(leg.angle):.6g}"
             L = "input" if leg.actuation == "length" else f"{leg.rod.length:.6g}"
             rad = "-" if leg.rod.radius is None else f"{leg.rod.radius:.4g}"
+            tip = f"{math.degrees(leg.tip_angle):.6g}" if leg.joint == "clamped" else "-"
             lines.append(
                 f"    {i + 1:>2}  {leg.actuation:<10} {leg.origin[0]:>13.6g} {leg.origin[1]:>13.6g} "
-                f"{ang:>11}  {rng:<24} {L:>8} {leg.rod.EI:>11.6g} {rad:>11}"
+                f"{ang:>11}  {rng:<24} {L:>8} {leg.rod.EI:>11.6g} {rad:>11}  {leg.joint:<8} {tip:>15}"
             )
         if any(leg.offset for leg in self.legs):
             lines.append("  input zero offsets (the leg acts as if its input were u + offset): " + ", ".join(

@@ -7,9 +7,10 @@ positions and prismatic/length inputs in units of the mechanism's length scale `
 span many decades between designs (about -0.0014 for a real-scale prototype, O(1) for a
 unit-size one) and diverge at singularities, so they are drawn on a symmetric-log axis whose
 linear threshold adapts to the data (below the smallest magnitude drawn): nothing is flattened
-onto zero.  The smooth singularity functions ``sing_ik`` and ``sing_fk`` (scaled determinants
-of the IK and FK Newton matrices, between -1 and 1) are drawn on a linear axis: they cross
-zero at IK and FK singularities.
+onto zero.  The singularity measures ``sing_ik`` and ``sing_fk``
+(:mod:`flexkin.analysis.jacobian`: dimensionless and scale-free, between -1 and 1, of order
+0.1-1 at a well-conditioned pose of any design) are drawn on a linear axis: they cross zero at
+IK and FK singularities.
 """
 
 from __future__ import annotations
@@ -44,8 +45,8 @@ def symlog_threshold(*series: np.ndarray) -> float:
 
 
 def plot_path(result, path: str | None = None) -> Any:
-    """Four stacked panels against ``t``: the actuator inputs; the singularity functions
-    ``sing_ik``, ``sing_fk`` (linear, zero at a singularity); ``det J_IK`` and ``det J_FK``
+    """Four stacked panels against ``t``: the actuator inputs; the singularity measures
+    ``sing_ik``, ``sing_fk`` (dimensionless, scale-free, linear axis, zero at a singularity); ``det J_IK`` and ``det J_FK``
     (dimensionless, symmetric-log axis with a threshold adapted to the data); the stability
     margin (unstable samples marked).  Events are vertical lines: black = IK singularity / end
     of the branch, orange = FK singularity / stability lost, grey = d-mode change.
@@ -81,10 +82,10 @@ def plot_path(result, path: str | None = None) -> Any:
         ax1.set_ylabel("input [deg]" if kinds and kinds[0] == "revolute" else "input [m]")
     ax1.legend(handles=lines, fontsize=8, loc="best")
 
-    ax2.plot(t, result.sing_ik, "-o", ms=2.5, color="k", label="sing_ik (IK Newton matrix)")
-    ax2.plot(t, result.sing_fk, "-o", ms=2.5, color="#ff7f0e", label="sing_fk (FK Newton matrix)")
+    ax2.plot(t, result.sing_ik, "-o", ms=2.5, color="k", label="sing_ik (0: IK singularity)")
+    ax2.plot(t, result.sing_fk, "-o", ms=2.5, color="#ff7f0e", label="sing_fk (0: FK singularity)")
     ax2.axhline(0.0, color="0.6", lw=0.8)
-    ax2.set_ylabel("scaled det (−1..1)\n0 = singularity")
+    ax2.set_ylabel("singularity measure\n(dimensionless, −1..1)\n0 = singularity", fontsize=8)
     ax2.legend(fontsize=8, loc="best")
 
     d_ik = np.where(np.isfinite(result.det_ik), result.det_ik, np.nan)

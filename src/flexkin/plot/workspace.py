@@ -261,7 +261,7 @@ def _draw_panel(ax, w, ws, ks, color_by, labels, norm, seen_kinds, notes=None) -
         sub = ws.message or "nothing reached"
     elif len(maps) == 1:
         mp = maps[0]
-        seeds = ", ".join(f"#{s + 1}" for s in mp.seeds)
+        seeds = ", ".join(f"#{s}" for s in mp.seeds)
         sub = (f"aspect {ks[0] + 1} of {n}: seed {seeds}; {mp.area_cells} cells, "
                f"{mp.area_cells * h * h:.3g} m²")
         if getattr(ws, "constraints", ()) and not getattr(ws, "constrained", False):

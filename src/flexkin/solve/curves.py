@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import math
+from typing import Callable
 
 import contourpy
 import numpy as np
@@ -55,7 +56,7 @@ class LegCurve:
 
 
 def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.0, force_tol: float = 0.05,
-               passes: int = 8) -> list[LegCurve]:
+               passes: int = 8, progress: Callable[[float, str], None] | None = None) -> list[LegCurve]:
     """Geometric-condition curves of the legs for world attach points ``B`` (3, 2) and platform
     orientation ``theta`` (clamped legs: :func:`flexkin.solve.clamped_curves.clamped_leg_curve`).
 
@@ -77,10 +78,14 @@ def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.
         Relative force resolution of the refined polylines.
     passes : int
         Maximum number of bisection passes.
+    progress : callable, optional
+        Called as ``progress(legs done / 3, "leg i")`` after each leg.
     """
     atlas = get_atlas(max_mode)
     out = []
     for i, leg in enumerate(mech.legs):
+        if progress is not None and i:
+            progress(i / 3, f"leg {i + 1}")
         if leg.platform_joint.carries_moment:
             from .clamped_curves import clamped_leg_curve
 

@@ -10,8 +10,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,6 +22,7 @@ from ..analysis.stability import mechanism_stability
 from ..analysis.verify import verify_solutions
 from ..core.budget import Deadline, Rate, timed_slices
 from ..core.geometry2d import wrap_to_pi
+from ..io.progress import substage
 from ..results import Solution
 from ..rod.atlas import in_scope
 from ..rod.closed_form import mode_of, standard_chart
@@ -165,11 +167,13 @@ BUILD_COST = 3e-3
 
 def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual: NDArray, max_mode: int,
                      load: NDArray, diag: dict[str, Any] | None = None, fixed: str = "pose",
-                     deadline: Deadline | None = None) -> list[Solution]:
+                     deadline: Deadline | None = None,
+                     progress: Callable[[float, str], None] | None = None) -> list[Solution]:
     """Reported solutions from refined candidates (module docstring); ``fixed`` is what the
     analysis held (``"pose"`` for IK, ``"inputs"`` for FK): its Newton matrix gives ``condition``.
     With a ``deadline`` the solutions are built in slices while the time allows; those left
-    unbuilt are dropped and the deadline is :attr:`~flexkin.core.budget.Deadline.hit`."""
+    unbuilt are dropped and the deadline is :attr:`~flexkin.core.budget.Deadline.hit`.
+    ``progress(fraction, stage)`` is told how far the analysis has got."""
     X = canonical(system, X)
     modes = rod_modes(system, X, charts)
     ok = np.all(modes <= max_mode, axis=1) & np.all(np.isfinite(X), axis=1)
@@ -181,10 +185,12 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
     dl = deadline if deadline is not None else Deadline()
     rate = Rate(BUILD_COST)
     sols = []
-    for lo, hi in timed_slices(len(idx), dl, rate, first=1):  # one first: a solution can cost 0.3 s
+    n = len(idx)
+    for lo, hi in timed_slices(n, dl, rate, first=1):  # one first: a solution can cost 0.3 s
         t = time.perf_counter()
         k = idx[lo:hi]
-        sols += build_solutions(system, mech, X[k], charts[k], load, residual[k], modes[k], fixed)
+        sols += build_solutions(system, mech, X[k], charts[k], load, residual[k], modes[k], fixed,
+                                substage(progress, lo / n, hi / n, ""))
         rate.add(hi - lo, time.perf_counter() - t)
     escale = system.F_ref * system.L_ref
     sols.sort(key=lambda s: (s.modes, round(s.energy / escale, 9), tuple(s.inputs), tuple(s.pose)))
@@ -193,7 +199,7 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
 
 def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDArray,
                     residual: NDArray | None = None, modes: NDArray | None = None,
-                    fixed: str = "pose") -> list[Solution]:
+                    fixed: str = "pose", progress: Callable[[float, str], None] | None = None) -> list[Solution]:
     """:class:`~flexkin.results.Solution` objects (with stability, Jacobians and the independent
     check of :mod:`flexkin.analysis.verify`: ``verified``, ``condition``) for equilibria ``X``
     (n, n_unknowns) in ``charts`` (n, 3); residuals are recomputed when not given.  ``fixed``
@@ -207,7 +213,7 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
     modes_b, boundary = rod_modes(system, X, charts, with_boundary=True)
     if modes is None:
         modes = modes_b
-    stab = mechanism_stability(system, X, charts)
+    stab = _stability(system, X, charts, progress)
     jac = kinematic_jacobians(system, X, charts, load)
     check = verify_solutions(system, X, charts, load, modes, boundary, fixed)
     q, _ = system.unit_rods(X, charts)
@@ -228,7 +234,27 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
     return sols
 
 
-def _with_id(s: Solution, k: int) -> Solution:
-    import dataclasses
+#: equilibria per batch of the stability analysis when progress is reported
+PROGRESS_BATCH = 8
 
+
+def _stability(system: System, X: NDArray, charts: NDArray, progress: Callable[[float, str], None] | None):
+    """:func:`mechanism_stability`, in batches reporting ``progress`` when it is given (the
+    stability of each equilibrium is computed on its own, so the batches change nothing)."""
+    n = len(X)
+    if progress is None or n <= PROGRESS_BATCH:
+        out = mechanism_stability(system, X, charts)
+    else:
+        parts = []
+        for k in range(0, n, PROGRESS_BATCH):
+            progress(k / n, f"stability {k} of {n}")
+            parts.append(mechanism_stability(system, X[k:k + PROGRESS_BATCH], charts[k:k + PROGRESS_BATCH]))
+        out = type(parts[0])(**{f.name: np.concatenate([getattr(q, f.name) for q in parts])
+                                for f in dataclasses.fields(parts[0])})
+    if progress is not None:
+        progress(1.0, "Jacobians and verification")
+    return out
+
+
+def _with_id(s: Solution, k: int) -> Solution:
     return dataclasses.replace(s, id=k)

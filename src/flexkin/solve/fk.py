@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..core.budget import Deadline
 from ..core.validation import as_triple, check_max_mode
+from ..io.progress import Progress, substage
 from ..results import FKDiagnostics, KinematicsResult, Solution
 from ..system import System
 from .finish import finish_solutions
@@ -32,7 +33,8 @@ __all__ = ["fk"]
 
 
 def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *, stride: int = 4,
-       stable_only: bool = False, time_budget: float | Deadline | None = None) -> KinematicsResult:
+       stable_only: bool = False, time_budget: float | Deadline | None = None,
+       progress: Progress | None = None) -> KinematicsResult:
     """All equilibrium poses of ``mech`` for actuator ``inputs`` under ``load`` (paper §5).
 
     Parameters
@@ -56,6 +58,10 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         time; when the time runs out the result holds what was finished and says
         ``complete = False`` (and so it does when the search exhausts its node budget).  A
         :class:`~flexkin.core.budget.Deadline` shares a caller's clock.
+    progress : callable, optional
+        Called as ``progress(fraction, stage)`` as the work advances (``fraction`` from 0 to 1,
+        during the search the share of the search space resolved;
+        :class:`flexkin.io.progress.ProgressBar` draws it).
 
     Returns
     -------
@@ -77,15 +83,20 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         return KinematicsResult((), True, msg, time.perf_counter() - t0, FKDiagnostics(), "fk", mech, given, wl,
                                 max_mode)
     if np.any(system.clamped):  # 9-D interval bounds exclude too little: the pose lattice
-        X, complete, stats = lattice_starts(system, u, w, max_mode, deadline=dl.end if dl.limited else None)
+        X, complete, stats = lattice_starts(system, u, w, max_mode, deadline=dl.end if dl.limited else None,
+                                            progress=substage(progress, 0.0, 0.6, "pose lattice"))
         nodes = stats.combinations
         diag["lattice_h"], diag["lattice_n_theta"] = stats.h, stats.n_theta
     else:
-        X, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=dl.for_search())
+        X, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=dl.for_search(),
+                                       progress=substage(progress, 0.0, 0.6, "branch-and-bound"))
     diag["candidates"] = int(len(X))
     diag["search_complete"] = complete
     diag["nodes"] = int(nodes)
-    sols = refine_fk(system, mech, X, system.default_charts(len(X)), w, max_mode, diag, deadline=dl)
+    if progress is not None:
+        progress(0.6, f"Newton on {len(X)} candidates")
+    sols = refine_fk(system, mech, X, system.default_charts(len(X)), w, max_mode, diag, deadline=dl,
+                     progress=substage(progress, 0.7, 1.0, "equilibria"))
     if dl.limited and not complete and "lattice_h" in diag:
         dl.hit = True  # the lattice search stops only at the deadline
     complete = complete and not dl.hit
@@ -103,7 +114,8 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
 
 
 def refine_fk(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
-              diag: dict[str, Any] | None = None, deadline: Deadline | None = None) -> list[Solution]:
+              diag: dict[str, Any] | None = None, deadline: Deadline | None = None,
+              progress: Progress | None = None) -> list[Solution]:
     """Newton-refine FK candidates ``X`` (inputs held) and build the solutions (within the
     ``deadline``, if given: what it leaves no time for is dropped and the deadline is hit)."""
     res = newton_within(system, X, charts, load, "inputs", deadline)
@@ -111,7 +123,7 @@ def refine_fk(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, 
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
     return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
-                            "inputs", deadline=deadline)
+                            "inputs", deadline=deadline, progress=progress)
 
 
 def _assembly_obstruction(m: System, u: NDArray) -> str:

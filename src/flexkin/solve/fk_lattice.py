@@ -47,6 +47,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -622,7 +623,8 @@ def _leg_sheet(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat:
 
 
 def lattice_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int, *, h: float = H,
-                   n_theta: int = N_THETA, s_max: float = S_MAX, deadline: float | None = None
+                   n_theta: int = N_THETA, s_max: float = S_MAX, deadline: float | None = None,
+                   progress: Callable[[float, str], None] | None = None
                    ) -> tuple[NDArray[np.float64], bool, LatticeStats]:
     """Starting points (n, n_unknowns) for the FK Newton of a mechanism with clamped legs,
     whether the search completed, and its counts.
@@ -645,6 +647,9 @@ def lattice_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int
         Largest predicted pose step of a start, in lattice steps.
     deadline : float, optional
         ``time.perf_counter()`` value after which the search stops (``complete`` False).
+    progress : callable, optional
+        Called as ``progress(fraction, stage)`` before each leg's rods and before the
+        combinations.
     """
     u = np.asarray(inputs, dtype=float)
     A, al, L = system.clamps(u[None])
@@ -656,6 +661,8 @@ def lattice_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int
     kin[np.mod(np.arange(box[4], box[5] + 1), nth)] = True
     legs, rod_models, complete = [], [], True
     for i in range(3):
+        if progress is not None:
+            progress(0.25 * i, f"rods of leg {i + 1} on the pose lattice")
         leg, done, model = _leg_sheet(system, i, A, al, L, lat, nth, box, kin, max_mode, deadline)
         legs.append(leg)
         rod_models.append(model)
@@ -666,6 +673,8 @@ def lattice_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int
     n_unknowns = system.layout.n_unknowns
     if not complete:
         return np.zeros((0, n_unknowns)), False, LatticeStats(hx, nth, n_rods, 0, 0, 0, 0)  # type: ignore[arg-type]
+    if progress is not None:
+        progress(0.75, "rod triples in platform equilibrium")
     common = np.intersect1d(np.intersect1d(legs[0]["keys"], legs[1]["keys"]), legs[2]["keys"])
     ranges = [np.stack([np.searchsorted(leg["keys"], common, "left"), np.searchsorted(leg["keys"], common, "right")],
                        1).astype(np.int64) for leg in legs]

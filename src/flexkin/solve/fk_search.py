@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -375,10 +376,23 @@ SLICE = 200_000
 NODE_COST = 2e-6
 
 
+def _node_shares(child: NDArray[np.int64], roots: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Each tree node's share of its tree: 1 at a root, half its parent's below (binary trees)."""
+    share = np.zeros(len(child))
+    level = np.unique(roots)
+    share[level] = 1.0
+    while level.size:
+        kids = child[level]
+        has = kids[:, 0] >= 0
+        share[kids[has].ravel()] = np.repeat(0.5 * share[level[has]], 2)
+        level = kids[has].ravel()
+    return share
+
+
 def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: int, *, stride: int = 4,
               eps_tip: float = 0.01, eps_force: float = 0.05, eps_ang: float = 0.05, reach: float = 1.0,
-              max_nodes: int = MAX_NODES, deadline: Deadline | None = None, fallback: int = 20_000
-              ) -> tuple[NDArray[np.float64], bool, int]:
+              max_nodes: int = MAX_NODES, deadline: Deadline | None = None, fallback: int = 20_000,
+              progress: Callable[[float, str], None] | None = None) -> tuple[NDArray[np.float64], bool, int]:
     """Starting points (n, n_unknowns) for the FK Newton, whether the search completed, and the
     number of node triples examined.
 
@@ -386,7 +400,10 @@ def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: in
     triples (a deterministic subsample) are returned as well.  With a ``deadline``
     (:class:`~flexkin.core.budget.Deadline`) the search runs in slices sized from the measured
     rate and stops early enough for the refinement of its starts (:data:`REFINE_COST` each) to
-    end in time, and the unresolved centres are limited to what the remaining time can refine."""
+    end in time, and the unresolved centres are limited to what the remaining time can refine.
+    ``progress(fraction, stage)`` is told the share of the search space resolved (the product
+    of the three nodes' shares of their trees, summed over the triples still to examine, is
+    what remains)."""
     lo, hi, child, zc, zh, nq, ng, roots, charts = _trees(mech, max_mode, stride)
     u = np.asarray(inputs, dtype=float)
     A, al, L = system.clamps(u[None])
@@ -403,6 +420,7 @@ def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: in
     w = np.asarray(load, dtype=float)
     dl = deadline if deadline is not None else Deadline()
     rate = Rate(NODE_COST)
+    share = None
     while n_stack > 0 and examined < max_nodes:
         if dl.expired(REFINE_COST * n_starts):
             break
@@ -415,6 +433,11 @@ def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: in
                                            starts, n_starts)
         rate.add(ex, time.perf_counter() - t)
         examined += ex
+        if progress is not None:
+            if share is None:
+                share = _node_shares(child, roots)
+            left = float(np.sum(np.prod(share[stack[:n_stack]], axis=1)))
+            progress(1.0 - left, f"{examined:,} node triples examined")
         if n_starts >= len(starts):
             starts = np.concatenate([starts, np.empty_like(starts)])
         if n_stack + 2 > len(stack):

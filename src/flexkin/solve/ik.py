@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..core.budget import Deadline
 from ..core.validation import as_triple, check_max_mode
+from ..io.progress import Progress, substage
 from ..results import IKDiagnostics, KinematicsResult, Solution
 from ..system import System
 from .curves import leg_curves
@@ -44,7 +45,8 @@ def as_load(mech, load: ArrayLike | None) -> NDArray[np.float64]:
 
 
 def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *,
-       stable_only: bool = False, time_budget: float | Deadline | None = None) -> KinematicsResult:
+       stable_only: bool = False, time_budget: float | Deadline | None = None,
+       progress: Progress | None = None) -> KinematicsResult:
     """All equilibria of ``mech`` at platform ``pose`` under ``load`` (paper §4).
 
     Parameters
@@ -65,6 +67,9 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         verification of the solutions.  The search stops early enough for its candidates to
         be refined in time; when the time runs out the result holds what was finished and says
         ``complete = False``.  A :class:`~flexkin.core.budget.Deadline` shares a caller's clock.
+    progress : callable, optional
+        Called as ``progress(fraction, stage)`` as the work advances (``fraction`` from 0 to 1;
+        :class:`flexkin.io.progress.ProgressBar` draws it).
 
     Returns
     -------
@@ -79,7 +84,8 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     dl = Deadline.of(time_budget)
     system = System.from_mechanism(mech)
     B = system.platform_points(pose[None])[0]
-    curves = leg_curves(mech, B, max_mode, theta=float(pose[2]))
+    curves = leg_curves(mech, B, max_mode, theta=float(pose[2]),
+                        progress=substage(progress, 0.0, 0.3, "geometric-condition curves"))
     diag: dict[str, Any] = {"branches": tuple(len(c) for c in curves)}
     given = tuple(float(v) for v in pose)
     if dl.expired():
@@ -105,6 +111,8 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         dim = lay.rod[i].stop - lay.rod[i].start
         p0s.append(cat(P0, (3,))); p1s.append(cat(P1, (3,)))
         zs.append((cat(Z0, (dim,)), cat(Z1, (dim,)))); us.append((cat(U0, ()), cat(U1, ())))
+    if progress is not None:
+        progress(0.3, "platform equilibrium on the curves")
     seg, s, complete = equilibrium_triples(p0s, p1s, w / wscale, deadline=dl.for_search(), leaf_cost=CANDIDATE_COST)
     diag["candidates"] = int(len(seg))
     diag["search_complete"] = complete
@@ -123,7 +131,10 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         X[:, lay.inputs.start + i] = ua + s[:, i] * (ub - ua)
 
     # ---- step 3: Newton on the full equations ----------------------------------------------
-    sols = refine_ik(system, mech, X, system.default_charts(len(X)), w, max_mode, diag, deadline=dl)
+    if progress is not None:
+        progress(0.4, f"Newton on {len(X)} candidates")
+    sols = refine_ik(system, mech, X, system.default_charts(len(X)), w, max_mode, diag, deadline=dl,
+                     progress=substage(progress, 0.45, 1.0, "equilibria"))
     complete = complete and not dl.hit
     msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
     if diag.get("continuum"):
@@ -138,7 +149,8 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
 
 
 def refine_ik(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
-              diag: dict[str, Any] | None = None, deadline: Deadline | None = None) -> list[Solution]:
+              diag: dict[str, Any] | None = None, deadline: Deadline | None = None,
+              progress: Progress | None = None) -> list[Solution]:
     """Newton-refine IK candidates ``X`` (pose held) and build the solutions (within the
     ``deadline``, if given: what it leaves no time for is dropped and the deadline is hit)."""
     res = newton_within(system, X, charts, load, "pose", deadline)
@@ -146,7 +158,7 @@ def refine_ik(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, 
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
     return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
-                            deadline=deadline)
+                            deadline=deadline, progress=progress)
 
 
 def _empty_message(curves) -> str:

@@ -3,17 +3,18 @@
 The path ``x(t) = (1 - t) x_from + t x_to``, ``t`` in [0, 1], is sampled at ``steps + 1``
 points; between samples the solution is continued (:func:`~flexkin.solve.continuation.continue_ik`)
 with steps halved on failure, down to :data:`MIN_SUBSTEP` of the sample spacing.  Along the
-branch, sign changes of the smooth singularity functions ``det A_IK``, ``det A_FK``
-(:mod:`flexkin.analysis.jacobian`), changes of the stability verdict and of the d-modes are
+branch, sign changes of the singularity measures ``sing_ik`` and ``sing_fk``
+(:mod:`flexkin.analysis.jacobian`; they change sign with ``det A_IK``, ``det A_FK``), changes of the stability verdict and of the d-modes are
 reported as events located between two samples.
 
 Where the continuation fails even at the smallest sub-step, the branch ends, and the reason
 given follows from what was computed there: an **IK singularity** (the branch folds back,
-typically the workspace boundary) when the IK Newton matrix is numerically singular at the
-last point reached (condition number above :data:`FOLD_COND`) or when its scaled
-determinant, extrapolated from the last two points reached with the square-root law of a
-fold (``det^2`` linear in ``t``), vanishes within the step that failed; otherwise "the
-corrector failed to converge" with the step size and what was measured.
+typically the workspace boundary) when the IK singularity measure ``sing_ik``
+(:mod:`flexkin.analysis.jacobian`: dimensionless, scale-free, 0 at an IK singularity) is
+below :data:`FOLD_SING` at the last point reached, or when, extrapolated from the last two
+points reached with the square-root law of a fold (``sing_ik^2`` linear in ``t``), it
+vanishes within the step that failed; otherwise "the corrector failed to converge" with the
+step size and what was measured.
 """
 
 from __future__ import annotations
@@ -25,22 +26,23 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..analysis.jacobian import kinematic_jacobians, system_blocks
+from ..analysis.jacobian import kinematic_jacobians, singularity_measures, system_blocks
 from ..analysis.stability import mechanism_stability
 from ..core.budget import Deadline, Rate
 from ..core.validation import as_triple, check_count, check_max_mode
+from ..io.progress import Progress, substage
 from ..results import Result, Solution, finite_or_none
 from ..system import System
 from .continuation import SEAM_V, continue_ik
 from .finish import rod_modes
 from .ik import as_load, ik
 
-__all__ = ["follow_path", "PathResult", "PathEvent", "MIN_SUBSTEP", "FOLD_COND"]
+__all__ = ["follow_path", "PathResult", "PathEvent", "MIN_SUBSTEP", "FOLD_SING"]
 
 #: smallest sub-step, as a fraction of the sample spacing
 MIN_SUBSTEP = 1.0 / 64
-#: condition number of the IK Newton matrix above which a failed step is an IK singularity
-FOLD_COND = 1e6
+#: IK singularity measure |sing_ik| below which a failed step is an IK singularity
+FOLD_SING = 1e-6
 #: seconds to analyse one sample (stability, Jacobians) before anything is measured; with
 #: feasibility (the sample's solution and its collision checks) about ten times more
 SAMPLE_COST = 1e-3
@@ -73,11 +75,13 @@ class PathResult(Result):
     Array attributes have one row per reached sample: ``t`` (k,), ``poses`` (k, 3) (rad),
     ``inputs`` (k, 3) (SI, continuous), ``modes`` (k, 3), ``stable`` (k,; samples whose
     stability is undecided count as not stable), ``margin`` (k,), ``det_ik``, ``det_fk``, ``cond`` (k,) (Eq. 16,
-    dimensionless; non-finite at singularities), ``sing_ik``, ``sing_fk`` (k,) the smooth
-    singularity functions, ``x`` and ``charts`` the system's unknowns.  ``complete`` is
-    ``True`` when the end of the path was reached (never when a time budget ran out).
-    ``feasibility`` holds one :class:`~flexkin.analysis.feasibility.Feasibility` per sample
-    when :func:`follow_path` computed them (``feasibility=True``), else it is empty.
+    dimensionless; non-finite at singularities), ``sing_ik``, ``sing_fk`` (k,) the
+    singularity measures (:mod:`flexkin.analysis.jacobian`: dimensionless, scale-free, in
+    [-1, 1], smooth along the branch, zero at IK / FK singularities), ``x`` and ``charts`` the
+    system's unknowns.  ``complete`` is ``True`` when the end of the path was reached (never
+    when a time budget ran out).  ``feasibility`` holds one
+    :class:`~flexkin.analysis.feasibility.Feasibility` per sample when :func:`follow_path`
+    computed them (``feasibility=True``), else it is empty.
     """
 
     mechanism: Any = field(default=None, repr=False)
@@ -222,7 +226,8 @@ def _pose_at(a: NDArray, b: NDArray, t: float) -> NDArray:
 
 def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: ArrayLike | None = None,
                 solution: int | Solution | None = None, max_mode: int = 2,
-                time_budget: float | Deadline | None = None, *, feasibility: bool = False) -> PathResult:
+                time_budget: float | Deadline | None = None, *, feasibility: bool = False,
+                progress: Progress | None = None) -> PathResult:
     """Follow one IK solution from pose ``start`` to pose ``end`` (m, m, rad).
 
     Parameters
@@ -248,6 +253,10 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
     feasibility : bool
         Also check every sample's feasibility (:func:`~flexkin.analysis.feasibility.check_feasibility`,
         a few ms per sample; within the budget) into :attr:`PathResult.feasibility`.
+    progress : callable, optional
+        Called as ``progress(fraction, stage)``: the IK at the start pose (when ``solution`` is
+        not a :class:`Solution`), the path parameter reached, then the analysis of the
+        remaining samples (:class:`flexkin.io.progress.ProgressBar` draws it).
 
     Returns
     -------
@@ -266,7 +275,8 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
     if isinstance(solution, Solution):
         sol = solution
     else:
-        res = ik(mech, a, load=w, max_mode=check_max_mode(max_mode), time_budget=dl if dl.limited else None)
+        res = ik(mech, a, load=w, max_mode=check_max_mode(max_mode), time_budget=dl if dl.limited else None,
+                 progress=substage(progress, 0.0, 0.1, "IK at the start pose"))
         if dl.hit:  # the solution to follow is not known for sure
             return PathResult(complete=False, message=dl.message("in the IK at the start pose"),
                               elapsed=time.perf_counter() - t0, **base)
@@ -341,6 +351,10 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
         ts.append(target)
         xs.append(x[0].copy())
         cs.append(ch[0].copy())
+        if progress is not None:
+            progress(0.1 + 0.8 * target, f"t = {target:.3f}")
+    if progress is not None:
+        progress(0.9, f"analysis of {len(xs) - ana.n} remaining samples")
     ana.run(xs, cs, cost)
     X, C, T = np.array(xs), np.array(cs), np.array(ts)
     P = X[:, system.layout.pose]
@@ -404,25 +418,20 @@ def _stop_reason(system: System, last: list, w: NDArray, t_end: float, dt_end: f
     X = np.array([p[1][0] for p in last])
     C = np.array([p[2][0] for p in last])
     T = np.array([p[0] for p in last])
-    Gz, _, Gu = system_blocks(system, X, C, w)
-    A = np.concatenate([Gz, Gu], axis=2)
-    with np.errstate(all="ignore"):
-        cond = float(np.linalg.cond(A[-1]))
-        norms = np.linalg.norm(A, axis=1)
-        d = np.linalg.det(A / np.where(norms > 0, norms, 1.0)[:, None, :])
+    d, _ = singularity_measures(*system_blocks(system, X, C, w))
+    s_end = float(abs(d[-1]))
     t_fold = None
     if len(T) == 2 and T[1] > T[0] and d[0] ** 2 > d[1] ** 2 and np.sign(d[0]) == np.sign(d[1]):
         t_fold = T[1] + d[1] ** 2 * (T[1] - T[0]) / (d[0] ** 2 - d[1] ** 2)
-    if not np.isfinite(cond) or cond > FOLD_COND:
-        return (f"IK singularity: the branch folds back near t = {t_end:.4f} (the IK Newton matrix is singular "
-                f"there, condition number {cond:.2g})")
+    if not np.isfinite(s_end) or s_end < FOLD_SING:
+        return (f"IK singularity: the branch folds back near t = {t_end:.4f} (sing_ik = {s_end:.2g} there: "
+                "the IK Newton matrix is singular)")
     if t_fold is not None and t_fold <= t_end + dt_end:
-        return (f"IK singularity: the branch folds back at t = {t_fold:.4f} (det A_IK -> 0, extrapolated from "
-                f"the last points; condition number {cond:.2g} at t = {t_end:.4f})")
-    where = "" if t_fold is None else f", det A_IK extrapolates to zero only at t = {t_fold:.3f}"
+        return (f"IK singularity: the branch folds back at t = {t_fold:.4f} (sing_ik -> 0, extrapolated from "
+                f"the last points; sing_ik = {s_end:.2g} at t = {t_end:.4f})")
+    where = "" if t_fold is None else f", extrapolating to zero only at t = {t_fold:.3f}"
     return (f"the corrector failed to converge at step size h = {dt_end * span:.3g} m (dt = {dt_end:.2g}) near "
-            f"t = {t_end:.4f}; no singularity detected there (condition number of the IK Newton matrix "
-            f"{cond:.2g}{where})")
+            f"t = {t_end:.4f}; no singularity detected there (sing_ik = {s_end:.2g}{where})")
 
 
 def _near_seam(system: System, x: NDArray, ch: NDArray) -> bool:

@@ -7,8 +7,9 @@ points of the front, continues each of them to its 4 grid neighbours not yet vis
 at once), and classifies the new points.  Propagation stops
 
 * across an **IK singularity**: the continuation fails (the branch folds back) or the
-  smooth function ``det A_IK`` changes sign (black boundary);
-* across an **FK singularity / loss of stability**: ``det A_FK`` changes sign or the new
+  IK singularity measure ``sing_ik`` (:mod:`flexkin.analysis.jacobian`; the sign of
+  ``det A_IK``) changes sign (black boundary);
+* across an **FK singularity / loss of stability**: ``sing_fk`` changes sign or the new
   point is not a stable equilibrium (orange boundary);
 * on request (``constrained=True``), at **infeasible** cells: an input outside its leg's
   ``range`` (revolute ranges modulo 360 deg), a bending strain over ``max_strain``, or (with
@@ -17,10 +18,10 @@ at once), and classifies the new points.  Propagation stops
 **Stability along the wave.**  With the actuators locked, an equilibrium loses stability only
 where the second variation gains a zero eigenvalue, i.e. where ``A_FK`` is singular (paper
 §6: the FK singularities and the stability boundary coincide).  Along the wave the sign of
-the scaled ``det A_FK`` is carried from cell to cell, so a cell reached without a sign change
+``sing_fk`` is carried from cell to cell, so a cell reached without a sign change
 from a stable cell is stable.  ``stability="wave"`` therefore computes the whole
 second variation (:func:`~flexkin.analysis.stability.mechanism_stability`) only at the seed
-and where ``|det A_FK|`` has fallen below a tenth of its value at the source cell (an FK
+and where ``|sing_fk|`` has fallen below a tenth of its value at the source cell (an FK
 singularity may be close); ``stability="full"`` (default) computes it at every cell (every
 margin known, ~1 ms per cell).  Margins not computed are ``NaN``; :meth:`Workspace.margins`
 fills them in.  The wave's sign test is an approximation: a step that crosses two sign changes
@@ -72,7 +73,7 @@ _NEIGHBOURS = ((1, 0), (-1, 0), (0, 1), (0, -1))
 #: map arrays stored by :meth:`Workspace.save`
 _MAP_ARRAYS = ("status", "inputs", "modes", "margin", "det_ik", "det_fk", "cond", "boundary_ik", "boundary_fk",
                "zrod", "boundary_seam", "charts", "violations", "strain", "boundary_infeasible", "boundary_edge")
-#: full stability check where |det A_FK| (scaled) falls below this fraction of its source's value
+#: full stability check where |sing_fk| falls below this fraction of its source's value
 _FK_DROP = 0.1
 #: points per rod centre line for the collision checks of a workspace cell
 COLLISION_SAMPLES = 60
@@ -136,7 +137,8 @@ class WorkspaceMap:
         Reached cells with a neighbour not entered because of an IK singularity / an FK
         singularity or instability.
     seeds : tuple of int
-        Indices (in the seed IK result) of the solutions merged here.
+        The ids (1-based, as ``flexkin.ik`` numbers them at the seed pose) of the seed
+        solutions merged here.
     zrod : (ny, nx, n_rod) float
         Rod chart coordinates.
     boundary_seam : (ny, nx) bool
@@ -224,7 +226,8 @@ class Workspace:
     x, y : ndarray
         Grid coordinates (m); cell ``[j, i]`` is at ``(x[i], y[j])``.
     seed : (x, y)
-        Seed position (snapped to the grid).
+        The seed position used (snapped to the grid; with ``seed_search``, where seeds were
+        found).
     maps : tuple of WorkspaceMap
         One per aspect (merged seeds), largest first.
     elapsed : float
@@ -332,7 +335,7 @@ class Workspace:
         for k, m in enumerate(self.maps):
             for name in _MAP_ARRAYS:
                 data[f"map{k}_{name}"] = getattr(m, name)
-            data[f"map{k}_seeds"] = np.array(m.seeds)
+            data[f"map{k}_seed_ids"] = np.array(m.seeds, dtype=np.int64)  # 1-based solution ids
         np.savez_compressed(path, **data)
 
     def summary(self) -> str:
@@ -349,7 +352,7 @@ class Workspace:
             combos = sorted({"".join(map(str, q)) for q in m.modes[r]})
             feas = "" if self.constrained or not self.constraints else \
                 f" ({m.feasible_cells} feasible, {m.feasible_cells * h * h:.4g} m^2)"
-            lines.append(f"  aspect {k + 1} (seed solutions {', '.join(str(s + 1) for s in m.seeds)}): "
+            lines.append(f"  aspect {k + 1} (seed solutions {', '.join(str(s) for s in m.seeds)}): "
                          f"{int(r.sum())} cells, area {r.sum() * h * h:.4g} m^2{feas}, d-modes {', '.join(combos)}; "
                          f"boundary cells: IK {int(m.boundary_ik.sum())}, FK/instability {int(m.boundary_fk.sum())}, "
                          f"infeasible {int(m.boundary_infeasible.sum())}, grid edge {int(m.boundary_edge.sum())}, "
@@ -478,7 +481,11 @@ def load_workspace(path: str) -> Workspace:
     maps = []
     for k in range(int(d["n_maps"])):
         g = {name: d[f"map{k}_{name}"] for name in _MAP_ARRAYS if f"map{k}_{name}" in d}
-        maps.append(WorkspaceMap(seeds=tuple(int(s) for s in d[f"map{k}_seeds"]), **g))
+        if f"map{k}_seed_ids" in d:
+            ids = tuple(int(s) for s in d[f"map{k}_seed_ids"])
+        else:  # files of flexkin <= 0.2 stored 0-based indices as map{k}_seeds
+            ids = tuple(int(s) + 1 for s in d[f"map{k}_seeds"])
+        maps.append(WorkspaceMap(seeds=ids, **g))
     extra = {}
     if "constraints" in d:
         extra = {"constraints": tuple(str(c) for c in d["constraints"]), "constrained": bool(d["constrained"]),
@@ -846,11 +853,60 @@ def _grown(X: NDArray, Y: NDArray, maps: Sequence[WorkspaceMap]) -> tuple[NDArra
     return (x, y) if len(x) * len(y) <= MAX_GRID_POINTS else None
 
 
+def _feasible_starts(starts: list[tuple[int, NDArray, NDArray]], checks: _CellChecks, constrained: bool
+                     ) -> tuple[list[tuple[int, NDArray, NDArray]], int]:
+    """With ``constrained``, the seed solutions that meet the constraints, and how many did not."""
+    if not constrained or not starts:
+        return starts, 0
+    _, bad = checks(np.array([s[1] for s in starts]), np.array([s[2] for s in starts]))
+    return [s for s, b in zip(starts, bad) if not b], int(np.count_nonzero(bad))
+
+
+def _seed_starts(mech: Any, pose: NDArray, w: NDArray, max_mode: int, all_aspects: bool, checks: _CellChecks,
+                 constrained: bool, deadline: Deadline) -> tuple[list[tuple[int, NDArray, NDArray]], int]:
+    """The stable IK solutions at ``pose`` as seeds ``(id, x, charts)`` (the first only unless
+    ``all_aspects``; feasible ones only with ``constrained``), and how many were infeasible
+    (the IK runs on the workspace's ``deadline``)."""
+    res = ik(mech, pose, load=w, max_mode=max_mode, time_budget=deadline if deadline.limited else None)
+    stable = [s for s in res.solutions if s.stable]
+    starts, n_bad = _feasible_starts([(int(s.id), np.array(s.x), np.array(s.charts)) for s in stable], checks,
+                                     constrained)
+    return (starts if all_aspects else starts[:1]), n_bad
+
+
+#: poses per grid axis sampled by the seed search (``seed_search=True``)
+SEED_SEARCH_SAMPLES = 7
+
+
+def _search_seed(mech: Any, X: NDArray, Y: NDArray, ij: tuple[int, int], th: float, w: NDArray, max_mode: int,
+                 all_aspects: bool, checks: _CellChecks, constrained: bool, deadline: Deadline
+                 ) -> tuple[tuple[tuple[int, int], list[tuple[int, NDArray, NDArray]]] | None, int]:
+    """Seeds elsewhere on the orientation slice: the grid points of a
+    :data:`SEED_SEARCH_SAMPLES` x :data:`SEED_SEARCH_SAMPLES` lattice over the grid, nearest to
+    the requested seed cell ``ij`` first; the first with a (feasible, when ``constrained``)
+    stable IK solution gives the seeds.  Returns ``((cell, starts) or None, poses tried)``."""
+    k = SEED_SEARCH_SAMPLES
+    ii = np.unique(np.rint(np.linspace(0, len(X) - 1, k + 2)[1:-1]).astype(int))
+    jj = np.unique(np.rint(np.linspace(0, len(Y) - 1, k + 2)[1:-1]).astype(int))
+    cells = [(j, i) for j in jj for i in ii if (j, i) != tuple(ij)]
+    cells.sort(key=lambda c: (np.hypot(X[c[1]] - X[ij[1]], Y[c[0]] - Y[ij[0]]), c))
+    tried = 0
+    for j, i in cells:
+        if deadline.expired():
+            break
+        tried += 1
+        starts, _ = _seed_starts(mech, np.array([X[i], Y[j], th]), w, max_mode, all_aspects, checks, constrained,
+                                 deadline)
+        if starts:
+            return ((int(j), int(i)), starts), tried
+    return None, tried
+
+
 def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None, load: ArrayLike | None = None,
               step: float | None = None, bounds: ArrayLike | None = None, max_mode: int = 2,
               all_aspects: bool = True, progress: bool | Callable[[int], None] = False,
-              time_budget: float | None = None, *, constrained: bool = False, collisions: bool = False,
-              grow: int | None = None, stability: str = "full") -> Workspace:
+              time_budget: float | Deadline | None = None, *, constrained: bool = False, collisions: bool = False,
+              grow: int | None = None, stability: str = "full", seed_search: bool = False) -> Workspace:
     """Constant-orientation workspace of ``mech`` at orientation ``theta`` (rad).
 
     Parameters
@@ -873,7 +929,8 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
         Largest d-mode of the seed IK (along the wave the rods follow their branch into
         whatever d-modes it takes).
     all_aspects : bool
-        Start from every stable seed solution (default) or only the first stable one.
+        Start from every stable seed solution (default) or only the first stable one (with
+        ``constrained``, the first stable one that meets the constraints).
     progress : bool or callable
         ``True`` shows a tqdm progress bar; a callable receives the number of continuation
         steps of each wave.
@@ -894,7 +951,13 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
         still on the edge are ``boundary_edge``.
     stability : {"wave", "full"}
         Stability computed at every cell (``"full"``, default), or carried along the wave by
-        the sign of ``det A_FK`` (``"wave"``: faster, an approximation; see the module docstring).
+        the sign of ``sing_fk`` (``"wave"``: faster, an approximation; see the module docstring).
+    seed_search : bool
+        When the seed pose has no stable IK solution (with ``constrained``: no feasible one),
+        look for seeds elsewhere on the orientation slice: the poses of a 7 x 7 lattice over
+        the grid, nearest first; the first with one seeds every aspect there
+        (:attr:`Workspace.seed` is the seed used, ``message`` says so).  The maps are empty
+        only when no sampled pose has one.  Default ``False``: the seed pose only.
 
     Returns
     -------
@@ -929,32 +992,38 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
     pose = np.array([X[i0], Y[j0], th])
     kinds = tuple(leg.actuation for leg in mech.legs)
     checks = _CellChecks(m, mech, collisions)
+    meta = {"constraints": checks.names, "constrained": bool(constrained), "stability": stability}
+    notes: list[str] = []
     if isinstance(seed, Solution):
         x = np.array(seed.x, dtype=float)
         x[m.layout.pose] = pose
         moved = refine_ik(m, mech, x[None], np.array(seed.charts)[None], w, 6)
-        starts = [(0, moved[0].x, moved[0].charts)] if moved else []
+        starts = [(int(seed.id), moved[0].x, moved[0].charts)] if moved else []
+        starts, n_bad = _feasible_starts(starts, checks, constrained)
     else:
-        res = ik(mech, pose, load=w, max_mode=check_max_mode(max_mode), time_budget=dl if dl.limited else None)
-        res_sols = list(res.solutions)
-        stable = [k for k, s in enumerate(res_sols) if s.stable]
-        if not all_aspects:
-            stable = stable[:1]
-        starts = [(k, np.array(res_sols[k].x), np.array(res_sols[k].charts)) for k in stable]
-    notes = []
-    if constrained and starts:
-        _, bad = checks(np.array([s[1] for s in starts]), np.array([s[2] for s in starts]))
-        if np.any(bad):
-            notes.append(f"{int(np.count_nonzero(bad))} stable seed solution(s) infeasible at the seed pose: "
-                         f"not mapped")
-        starts = [s for s, b in zip(starts, bad) if not b]
-    meta = {"constraints": checks.names, "constrained": bool(constrained), "stability": stability}
+        max_mode = check_max_mode(max_mode)
+        starts, n_bad = _seed_starts(mech, pose, w, max_mode, all_aspects, checks, constrained, dl)
+    why = "no feasible stable IK solution" if n_bad else "no stable IK solution"
+    if not starts and seed_search and not isinstance(seed, Solution) and not dl.hit:
+        found, tried = _search_seed(mech, X, Y, (j0, i0), th, w, max_mode, all_aspects, checks, constrained, dl)
+        if found is None:
+            why = f"{why} at the seed pose ({X[i0]:.6g}, {Y[j0]:.6g}) nor at any of the {tried} other poses sampled " \
+                  f"on the grid"
+        else:
+            notes.append(f"{why} at the seed pose ({X[i0]:.6g}, {Y[j0]:.6g}); seeded at "
+                         f"({X[found[0][1]]:.6g}, {Y[found[0][0]]:.6g}) instead, the nearest of the {tried} poses "
+                         f"sampled on the grid with one")
+            (j0, i0), starts = found
+            n_bad = 0
+    elif not starts:
+        why += " at the seed pose"
     if not starts:
-        why = "no feasible stable IK solution at the seed pose" if notes else "no stable IK solution at the seed pose"
         if dl.hit:
-            why = dl.message("in the IK at the seed pose")
+            why = dl.message("while looking for a seed")
         return Workspace(mech.name, kinds, th, tuple(map(float, w)), X, Y, (float(X[i0]), float(Y[j0])), (),
                          time.perf_counter() - t0, 0, why, complete=not dl.hit, **meta)
+    if n_bad:
+        notes.append(f"{n_bad} stable seed solution(s) infeasible at the seed pose: not mapped")
     bar = None
     cb: Callable[[int], None] | None = None
     if progress is True:

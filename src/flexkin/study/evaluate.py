@@ -13,7 +13,15 @@ IK singularity, an FK singularity or a loss of stability):
 
 * ``workspace_area``: area of the cells reached by any aspect (m^2);
 * ``singularity_free_area``: area of the largest aspect (m^2);
+* ``feasible_area``, ``strain_limited_area``: areas of the reached cells that meet every
+  constraint checked, and the strain limit (m^2);
+* ``feasible_disc_radius``: the largest disc of feasible cells of one aspect (m);
 * every other index is over the reached cells of the largest aspect.
+
+With ``constrained`` the wave stops at infeasible cells, so every area measures the feasible
+region reached from the seed.  With ``seed_search`` (the default) a design without a stable
+IK solution at the seed pose is seeded elsewhere on the orientation slice
+(:func:`flexkin.solve.workspace.workspace`); ``seed_x``, ``seed_y`` say where.
 """
 
 from __future__ import annotations
@@ -29,16 +37,18 @@ from numpy.typing import NDArray
 __all__ = ["METRICS", "ROW_VERSION", "DesignTask", "evaluate_design", "Metric", "INDEX_SUMMARIES"]
 
 #: Version of the row produced by :func:`evaluate_design`; part of every stored row's key.
-ROW_VERSION = 2
+ROW_VERSION = 3
 
 
 @dataclass(frozen=True)
 class Metric:
-    """A metric column: its type (``"float"``, ``"int"``, ``"bool"`` or ``"str"``), unit and meaning."""
+    """A metric column: its type (``"float"``, ``"int"``, ``"bool"`` or ``"str"``), unit and
+    meaning, and whether a study draws a figure of it (not of a coordinate such as ``seed_x``)."""
 
     dtype: str
     unit: str
     doc: str
+    figure: bool = True
 
 
 #: Per-equilibrium indices summarised over the largest aspect by ``min_``, ``mean_`` and ``max_``
@@ -65,6 +75,21 @@ METRICS: dict[str, Metric] = {
                                                     "reached from the seed)"),
     "aspect_areas": Metric("str", "m^2", "area of each aspect, largest first, separated by ';'"),
     "touches_bounds": Metric("bool", "", "a reached cell lies on the edge of the grid: the areas are cut by the bounds"),
+    "constraints": Metric("str", "", "the constraints checked at every cell, separated by ';' (ranges, strain, "
+                                     "collisions)"),
+    "feasible_area": Metric("float", "m^2", "area of the reached cells (any aspect) that meet every constraint "
+                                            "checked"),
+    "strain_limited_area": Metric("float", "m^2", "area of the reached cells (any aspect) whose peak bending strain "
+                                                  "is within [limits] max_strain (empty when the strain is not "
+                                                  "checked)"),
+    "feasible_disc_radius": Metric("float", "m", "radius of the largest disc whose grid points are all feasible "
+                                                 "cells of one aspect (singularity-free, stable); the grid's edge "
+                                                 "bounds it"),
+    "feasible_disc_x": Metric("float", "m", "x of the centre of that disc", figure=False),
+    "feasible_disc_y": Metric("float", "m", "y of the centre of that disc", figure=False),
+    "seed_x": Metric("float", "m", "x of the seed pose used (another than the requested one when seed_search moved "
+                                   "it)", figure=False),
+    "seed_y": Metric("float", "m", "y of the seed pose used", figure=False),
     "inscribed_radius": Metric("float", "m", "distance from the seed to the nearest grid point the largest aspect "
                                              "does not reach"),
     "n_mode_combinations": Metric("int", "", "distinct d-mode combinations in the largest aspect"),
@@ -138,6 +163,37 @@ def _cell_states(mp: Any, ws: Any, system: Any) -> tuple[NDArray[np.float64], ND
     Xc[:, lay.pose] = np.stack([np.asarray(ws.x)[ii], np.asarray(ws.y)[jj], np.full(len(jj), ws.theta)], -1)
     Xc[:, lay.inputs] = mp.inputs[jj, ii]
     return Xc, np.asarray(mp.charts)[jj, ii]
+
+
+def _feasibility_metrics(out: dict[str, Any], ws: Any) -> None:
+    """Feasible and strain-limited areas and the largest feasible disc (see :data:`METRICS`)."""
+    from scipy.ndimage import distance_transform_edt
+
+    from ..solve.workspace import VIOLATION_STRAIN
+
+    h = float(ws.step)
+    out["constraints"] = ";".join(ws.constraints)
+    out["feasible_area"] = float(ws.feasible_union().sum()) * h * h
+    if "strain" in ws.constraints:
+        ok = np.zeros((len(ws.y), len(ws.x)), bool)
+        for mp in ws.maps:
+            ok |= mp.reached & ((np.asarray(mp.violations) & VIOLATION_STRAIN) == 0)
+        out["strain_limited_area"] = float(ok.sum()) * h * h
+    best, centre = 0.0, None
+    for mp in ws.maps:
+        feas = np.pad(mp.feasible, 1)  # the points beyond the grid are not known to be feasible
+        if not feas.any():
+            continue
+        d = distance_transform_edt(feas) * h  # to the nearest grid point that is not a feasible cell
+        k = int(np.argmax(d))
+        if d.flat[k] > best:
+            best, centre = float(d.flat[k]), np.unravel_index(k, d.shape)
+    if centre is not None:
+        out["feasible_disc_radius"] = best
+        out["feasible_disc_x"] = float(ws.x[centre[1] - 1])
+        out["feasible_disc_y"] = float(ws.y[centre[0] - 1])
+    else:
+        out["feasible_disc_radius"] = 0.0
 
 
 def _aspect_metrics(out: dict[str, Any], want: set[str], ws: Any, mech: Any) -> None:
@@ -226,7 +282,8 @@ def evaluate_design(task: DesignTask) -> dict[str, Any]:
         mech = mechanism_from_dict(dict(task.mechanism), source=task.source)
         ws = workspace(mech, math.radians(task.theta_deg), seed=tuple(s["seed"]), step=s.get("step"),
                        bounds=s.get("bounds"), max_mode=int(s["max_mode"]), all_aspects=bool(s["all_aspects"]),
-                       time_budget=s.get("time_budget"))
+                       time_budget=s.get("time_budget"), constrained=bool(s.get("constrained", False)),
+                       collisions=bool(s.get("collisions", False)), seed_search=bool(s.get("seed_search", True)))
         complete = "time budget" not in ws.message
         note = " ".join(ws.message.split())
         h = float(ws.step)
@@ -236,6 +293,8 @@ def evaluate_design(task: DesignTask) -> dict[str, Any]:
         out["singularity_free_area"] = float(ws.maps[0].area_cells) * h * h if ws.maps else 0.0
         out["aspect_areas"] = ";".join(f"{mp.area_cells * h * h:.6g}" for mp in ws.maps)
         out["touches_bounds"] = bool(union[0].any() or union[-1].any() or union[:, 0].any() or union[:, -1].any())
+        out["seed_x"], out["seed_y"] = float(ws.seed[0]), float(ws.seed[1])
+        _feasibility_metrics(out, ws)
         if ws.maps:
             _aspect_metrics(out, set(task.metrics), ws, mech)
     except Exception as e:  # a failing design is a row with an error, never a failed study

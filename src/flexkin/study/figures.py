@@ -126,8 +126,8 @@ def study_figures(rows: Sequence[dict[str, Any]], spec: Any, out: str | Path) ->
     paths, messages = [], []
     empty = []
     for m in spec.metrics:
-        if m in METRICS and METRICS[m].dtype == "str":
-            continue  # lists (aspect_areas) are in the table only
+        if m in METRICS and (METRICS[m].dtype == "str" or not METRICS[m].figure):
+            continue  # lists (aspect_areas) and coordinates (seed_x) are in the table only
         if not any(r.get(m) is not None for r in rows):
             empty.append(m)
             continue

@@ -38,7 +38,8 @@ _TOP_KEYS = ("name", "mechanism", "orientations", "metrics", "grid", "workspace"
 _RANGE_KEYS = ("start", "stop", "num")
 #: workspace settings and their defaults (``None``: flexkin's default)
 WORKSPACE_DEFAULTS: dict[str, Any] = {"step": None, "bounds": None, "seed": [0.0, 0.0], "max_mode": 2,
-                                      "all_aspects": True, "time_budget": None}
+                                      "all_aspects": True, "time_budget": None, "constrained": False,
+                                      "collisions": False, "seed_search": True}
 MAX_TASKS = 1_000_000
 MAX_FILE_BYTES = 1024 * 1024
 
@@ -286,11 +287,12 @@ def _workspace(value: Any) -> dict[str, Any]:
         if isinstance(q, bool) or not isinstance(q, int) or not 1 <= q <= 6:
             raise _Problem("workspace.max_mode", f"expected an integer from 1 to 6, got {_show(q)}")
         out["max_mode"] = q
-    if "all_aspects" in value:
-        aa = value["all_aspects"]
-        if not isinstance(aa, bool):
-            raise _Problem("workspace.all_aspects", f"expected true or false, got {_show(aa)}")
-        out["all_aspects"] = aa
+    for key in ("all_aspects", "constrained", "collisions", "seed_search"):
+        if key in value:
+            flag = value[key]
+            if not isinstance(flag, bool):
+                raise _Problem(f"workspace.{key}", f"expected true or false, got {_show(flag)}")
+            out[key] = flag
     if "time_budget" in value:
         t = _number(value["time_budget"], "workspace.time_budget")
         if t <= 0:
