@@ -18,12 +18,12 @@ from __future__ import annotations
 from typing import Any
 
 from . import _moved
+from .core.version import __version__
 from .errors import FlexkinWarning, MechanismError
 from .mechanism import Leg, Mechanism, Platform, Rod, load_mechanism, mechanism_from_dict
 
 _moved.install()  # import paths of earlier releases keep working for one release (CHANGELOG.md)
 
-__version__ = "0.2.0"
 
 __all__ = [
     "FlexkinWarning", "MechanismError", "Leg", "Mechanism", "Platform", "Rod", "load_mechanism",

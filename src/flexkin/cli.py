@@ -425,7 +425,7 @@ def _cmd_path(a) -> int:
 
 
 def _version() -> str:
-    from . import __version__
+    from .core.version import __version__
 
     return __version__
 

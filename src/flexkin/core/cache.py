@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .jit import cache_base, kernel_cache_dir
+from .version import __version__
 
 __all__ = ["cached_arrays", "cache_dir"]
 
@@ -35,8 +36,6 @@ def cache_dir() -> Path:
 
 
 def _key(name: str, parts: tuple) -> str:
-    from .. import __version__
-
     h = hashlib.sha256(repr((name, __version__, kernel_cache_dir().name) + tuple(parts)).encode())
     return h.hexdigest()[:16]
 
