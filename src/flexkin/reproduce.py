@@ -26,9 +26,7 @@ Numbers are printed to the precision that means something: positions to 0.1 µm 
 
 from __future__ import annotations
 
-import base64
 import csv
-import html
 import re
 import time
 from dataclasses import dataclass, field
@@ -37,7 +35,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ["reproduce", "ReproduceResult", "PAPER_TABLE1", "PAPER_TABLE2", "markdown_to_html", "fmt_length"]
+from .io.html_report import markdown_to_html
+
+__all__ = ["reproduce", "ReproduceResult", "PAPER_TABLE1", "PAPER_TABLE2", "fmt_length"]
 
 #: paper Table 1 (theory): FK of the prototype at rho = 25 mm, platform orientations (deg)
 PAPER_TABLE1 = (90.0, -75.7)
@@ -202,49 +202,6 @@ def _feasibility_summary(feas) -> str:
 
 
 # ---- HTML -----------------------------------------------------------------------------------
-_CSS = """body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:70em;margin:2em auto;
-padding:0 1em;line-height:1.45;color:#222}img{max-width:100%;height:auto;border:1px solid #ddd;margin:.4em 0}
-table{border-collapse:collapse;margin:.6em 0;font-size:.9em}td,th{border:1px solid #ccc;padding:.2em .5em;
-text-align:right}th{background:#f2f2f2}td:first-child,th:first-child{text-align:left}
-pre{background:#f7f7f7;padding:.6em;overflow-x:auto;font-size:.85em}h2{border-bottom:1px solid #ddd}"""
-
-
-def markdown_to_html(md: str, root: Path, title: str = "flexkin report") -> str:
-    """The report's Markdown as one self-contained HTML page (CommonMark with tables, rendered by
-    markdown-it-py); images under ``root`` are embedded as base64 data, links are kept.
-
-    Parameters
-    ----------
-    md : str
-        Markdown text.
-    root : Path
-        Directory the image paths are relative to.
-    title : str
-        Title of the page.
-
-    Returns
-    -------
-    str
-        The HTML document.
-    """
-    from markdown_it import MarkdownIt
-
-    parser = MarkdownIt("commonmark").enable("table")
-    default_image = parser.renderer.rules["image"]
-
-    def embedded_image(tokens, idx, options, env):  # src -> data: URI of the file under root
-        tok = tokens[idx]
-        f = root / str(tok.attrGet("src"))
-        if f.is_file():
-            mime = "image/svg+xml" if f.suffix == ".svg" else f"image/{f.suffix.lstrip('.').lower()}"
-            tok.attrSet("src", f"data:{mime};base64," + base64.b64encode(f.read_bytes()).decode("ascii"))
-        return default_image(tokens, idx, options, env)
-
-    parser.renderer.rules["image"] = embedded_image
-    return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>'
-            f"<style>{_CSS}</style></head><body>\n" + parser.render(md) + "</body></html>\n")
-
-
 # ---- Cosserat refinement (issue 16) --------------------------------------------------------
 #: the prototype's shear modulus (Pa): GA = 1.8e5 N over A = pi (1.5 mm)^2 (paper §7; EA = 4.8e5 N
 #: follows from E = 68 GPa)
@@ -383,6 +340,193 @@ def _calibration_section(out: Path, figs: list[Path]) -> list[str]:
     return md
 
 
+@dataclass
+class _Report:
+    """The report being written: its directory, Markdown lines, figures, tables and progress."""
+
+    out: Path
+    quick: bool
+    tick: Callable[[str], None]
+    md: list[str] = field(default_factory=list)
+    figs: list[Path] = field(default_factory=list)
+    tables: list[Path] = field(default_factory=list)
+
+    def figures(self, files: list[Path], alt: str) -> None:
+        """Add links to ``files`` (pages of one figure) to the report."""
+        self.figs.extend(files)
+        for k, f in enumerate(files, 1):
+            self.md += [f"![{alt}" + (f", page {k} of {len(files)}" if len(files) > 1 else "") + f"]({f.name})", ""]
+
+
+def _section_rod(rep: _Report) -> dict[str, float]:
+    """1. The rod model against an ODE integration, and Fig. 19."""
+    from .mechanism.model import circular_EI
+    from .plot.rod import plot_rod_sweep
+    from .rod.sweep import FIG19, rod_sweep
+
+    rc = _rod_check(8 if rep.quick else 24)
+    rep.tick("rod model")
+    rep.md += ["## 1. Rod model (Eqs. 9–14) against an ODE integration", "",
+               f"{rc['rods']} random rods (d-modes 1–3, both signs of k): largest tip position error "
+               f"{rc['max_tip_position_error_per_L']:.1e} L, largest tip angle / tip moment error "
+               f"{rc['max_tip_angle_or_moment_error']:.1e} (both at the integration's tolerance).", ""]
+    EI = circular_EI(FIG19["E"], FIG19["radius"])
+    xs = np.linspace(FIG19["x_start"], FIG19["x_end"], 6 if rep.quick else 36)
+    sweep = rod_sweep(xs, FIG19["tip_y"], FIG19["length"], EI)
+    f = rep.out / "fig19_rod_forces.png"
+    plot_rod_sweep(sweep, str(f))
+    rep.tick("Fig. 19")
+    rep.md += ["### Fig. 19: tip force of one rod along a sweep of its tip", "",
+               f"Nitinol rod L = {FIG19['length']} m, r = {FIG19['radius'] * 1e3:g} mm, tip height "
+               f"{FIG19['tip_y']} m, tip abscissa {FIG19['x_start']} → {FIG19['x_end']} m.", ""]
+    rep.figures([f], "Fig. 19")
+    return rc
+
+
+def _section_parameter_space(rep: _Report) -> None:
+    """2. The parameter space (Fig. 2a) and its rectangular form (Fig. 6)."""
+    from .plot.rod import plot_parameter_space
+
+    f1, f2 = rep.out / "fig2_parameter_space_mode1.png", rep.out / "fig2_parameter_space_mode2.png"
+    n = 121 if rep.quick else 361
+    plot_parameter_space(1, "R", str(f1), n=n)
+    plot_parameter_space(2, "R", str(f2), n=n)
+    rep.tick("parameter space")
+    rep.md += ["## 2. Parameter space (Fig. 2a) and its rectangular k_r form (Fig. 6)", ""]
+    rep.figures([f1], "mode 1")
+    rep.figures([f2], "mode 2")
+
+
+def _section_curves(rep: _Report, proto) -> None:
+    """3. The geometric-condition curves of the prototype (Fig. 7)."""
+    from . import ik
+    from .plot.curves import plot_curves
+
+    r90 = ik(proto, (0.0, 0.0, np.radians(90)), load=(0, 0, 0))
+    f = rep.out / "fig7_curves_prototype_90deg.png"
+    plot_curves(r90, str(f))
+    rep.tick("Fig. 7")
+    rep.md += ["## 3. Geometric-condition curves (Fig. 7), prototype at (0, 0, 90°)", "",
+               f"{len(r90)} IK solutions; dots are labelled with their ids (dots at one place share a label).", ""]
+    rep.figures([f], "Fig. 7")
+
+
+def _section_ik_cases(rep: _Report, ex: Path, pose: tuple[float, float, float]) -> dict[str, dict[str, int]]:
+    """4. Full IK of the three case studies (Figs. 10–15); the solution counts by d-modes."""
+    from . import ik, load_mechanism
+    from .plot.solutions import write_solution_pages
+
+    counts: dict[str, dict[str, int]] = {}
+    rep.md += ["## 4. Full inverse kinematics of the case studies (Figs. 10–15)", "",
+               f"Pose ({CASE_POSE[0]} m, {CASE_POSE[1]} m, {CASE_POSE[2]}°), unloaded, d-modes 1–2. Solutions are "
+               "numbered by id, the same in the tables, the CSV files and the figures; colours are d-mode "
+               "combinations.", ""]
+    for key, fname, label in (("IK 3-PFR", "unit_3pfr.toml", "3-P̲FR (prismatic)"),
+                              ("IK 3-RFR", "unit_3rfr.toml", "3-R̲FR (revolute)"),
+                              ("IK 3-PFR(length)", "unit_3pfr_length.toml", "3-PF̲R (length)")):
+        mech = load_mechanism(ex / fname)
+        res = ik(mech, pose, load=(0, 0, 0))
+        counts[key] = res.by_modes()
+        stem = f"ik_{fname.replace('.toml', '')}"
+        tab = write_solutions_csv(res, rep.out / f"{stem}.csv")
+        rep.tables.append(tab)
+        rep.md += [f"### {label}", ""] + _case_block(res, label, tab.name)
+        shown = res.select(stable_only=True) if rep.quick else res
+        what = "the stable solutions" if rep.quick else "every solution"
+        rep.md += [f"Figure: {what}" + (f" ({len(shown)})" if rep.quick else "") + ".", ""]
+        rep.figures(write_solution_pages(shown, rep.out / f"{stem}.png"), key)
+        rep.tick(key)
+    return counts
+
+
+def _section_fk(rep: _Report, rfr, pose: tuple[float, float, float]) -> dict[str, int]:
+    """5. Full FK of the 3-RFR at the inputs of its first IK solution (Fig. 16)."""
+    from . import fk, ik
+    from .plot.solutions import write_solution_pages
+
+    base = ik(rfr, pose, load=(0, 0, 0))
+    u = base.solutions[0].inputs
+    res = fk(rfr, u, load=(0, 0, 0))
+    tab = write_solutions_csv(res, rep.out / "fk_unit_3rfr.csv")
+    rep.tables.append(tab)
+    st = res.select(stable_only=True)
+    st111 = type(st)(**{**st.__dict__, "solutions": tuple(s for s in st.solutions if s.modes == (1, 1, 1)),
+                        "_cache": {}})
+    rep.md += ["## 5. Full forward kinematics of the 3-R̲FR (Fig. 16)", "",
+               "Inputs (deg): " + ", ".join(f"{np.degrees(v):.2f}" for v in u)
+               + f" (those of IK solution {base.solutions[0].id} of section 4).", ""]
+    rep.md += _case_block(res, "FK", tab.name)
+    rep.md += [f"Stable with d-modes 111: {len(st111)}, of which {_feasibility_summary(st111.feasibility())}. "
+               "The paper finds 4 stable mode-111 solutions for its differently sized case.", ""]
+    rep.figures(write_solution_pages(st111, rep.out / "fk_unit_3rfr_stable_111.png"), "Fig. 16")
+    rep.tick("FK 3-RFR")
+    return res.by_modes()
+
+
+def _section_workspace(rep: _Report, rfr) -> None:
+    """6. The constant-orientation workspace of the 3-RFR (Fig. 17)."""
+    from .plot.workspace import plot_workspace
+    from .solve.workspace import workspace
+
+    step = 0.05 if rep.quick else 0.015
+    ws = workspace(rfr, np.radians(20.0), step=step, bounds=(-0.6, 0.6, -0.6, 0.6), all_aspects=False)
+    rep.tick("workspace")
+    rep.md += ["## 6. Constant-orientation workspace (Fig. 17)", "", "```", ws.summary(), "```", "",
+               "One aspect: the region reached from the first stable IK solution at the seed. Black: IK singularity "
+               "(the continued solution folds back); orange: FK singularity / loss of stability; grey: unresolved "
+               "(a rod straight under tension, see the README).", ""]
+    f = rep.out / "fig17_workspace_unit_3rfr_20deg.png"
+    plot_workspace([ws], str(f))
+    rep.figures([f], "Fig. 17")
+
+
+def _section_tables(rep: _Report, proto) -> tuple[Any, list[dict[str, Any]], list[dict[str, Any]]]:
+    """7. Tables 1 and 2 (theory columns); the FK result of Table 1 and the rows of both."""
+    from . import fk, ik
+
+    r1 = fk(proto, (0.025, 0.025, 0.025), load=(0, 0, 0))
+    table1 = []
+    for target in PAPER_TABLE1:
+        hit = [s for s in r1.solutions if s.stable and s.modes == (1, 1, 1)
+               and abs(np.degrees(s.pose[2]) - target) < 5.0]
+        s = hit[0] if hit else None
+        table1.append({"paper_theta_deg": target,
+                       "flexkin_pose": None if s is None else [s.pose[0], s.pose[1], float(np.degrees(s.pose[2]))],
+                       "stable": None if s is None else s.stable, "id": None if s is None else s.id,
+                       "solution": s})
+    rep.tick("Table 1")
+    table2 = []
+    for th, rho_paper in PAPER_TABLE2.items():
+        r = ik(proto, (0.0, 0.0, np.radians(th)), load=(0, 0, 0))
+        sym = [s for s in r.solutions if s.stable and s.modes == (1, 1, 1) and np.ptp(s.inputs) < 1e-9]
+        sym.sort(key=lambda s: abs(s.inputs[0] - rho_paper))
+        table2.append({"theta_deg": th, "paper_rho": rho_paper,
+                       "flexkin_rho": None if not sym else float(sym[0].inputs[0]),
+                       "stable": None if not sym else sym[0].stable, "solution": None if not sym else sym[0]})
+    rep.tick("Table 2")
+    rep.md += ["## 7. Tables 1 and 2 (prototype `examples/prototype_3pfr.toml`, theory columns)", "",
+               "### Table 1: FK at ρ = (25, 25, 25) mm", "",
+               f"Positions to {LENGTH_RESOLUTION:g} m (the solvers' resolution here), angles to 0.01°.", "",
+               "| paper θ [deg] | flexkin pose (x [m], y [m], θ [deg]) | stable |", "|---|---|---|"]
+    for row in table1:
+        p = row["flexkin_pose"]
+        rep.md.append(f"| {row['paper_theta_deg']:g} | "
+                      + ("not found" if p is None else f"({fmt_length(p[0])}, {fmt_length(p[1])}, {p[2]:.2f})")
+                      + f" | {row['stable']} |")
+    rep.md += ["", "### Table 2: IK at (0, 0, θ), symmetric stable d-mode-111 solution", "",
+               "| θ [deg] | paper ρ [m] | flexkin ρ [m] | stable |", "|---|---|---|---|"]
+    for row in table2:
+        rep.md.append(f"| {row['theta_deg']:g} | {row['paper_rho']:.3f} | "
+                      + ("not found" if row["flexkin_rho"] is None else f"{row['flexkin_rho']:.4f}")
+                      + f" | {row['stable']} |")
+    return r1, table1, table2
+
+
+#: the steps of the report, in order (the progress bar's total)
+STEPS = ("rod model", "Fig. 19", "parameter space", "Fig. 7", "IK 3-PFR", "IK 3-RFR", "IK 3-PFR(length)",
+         "FK 3-RFR", "workspace", "Table 1", "Table 2", "Cosserat", "calibration", "report")
+
+
 def reproduce(out: str | Path = "flexkin_report", quick: bool = False,
               progress: bool | Callable[[str], None] = True) -> ReproduceResult:
     """Run the paper's analysis and write the report into ``out``.
@@ -404,26 +548,17 @@ def reproduce(out: str | Path = "flexkin_report", quick: bool = False,
     import matplotlib
 
     matplotlib.use("Agg")
-    from . import fk, ik, load_mechanism
-    from .mechanism.model import circular_EI
-    from .plot.curves import plot_curves
-    from .plot.rod import plot_parameter_space, plot_rod_sweep
-    from .plot.solutions import write_solution_pages
-    from .plot.workspace import plot_workspace
-    from .rod.sweep import FIG19, rod_sweep
-    from .solve.workspace import workspace
+    from . import load_mechanism
 
     t0 = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     ex = _examples_dir()
-    steps = ["rod model", "Fig. 19", "parameter space", "Fig. 7", "IK 3-PFR", "IK 3-RFR", "IK 3-PFR(length)",
-             "FK 3-RFR", "workspace", "Table 1", "Table 2", "Cosserat", "calibration", "report"]
     bar = None
     if progress is True:
         from .io.progress import bar as progress_bar
 
-        bar = progress_bar(len(steps), "flexkin reproduce", unit="step")
+        bar = progress_bar(len(STEPS), "flexkin reproduce", unit="step")
 
     def tick(name: str) -> None:
         if bar is not None:
@@ -432,155 +567,27 @@ def reproduce(out: str | Path = "flexkin_report", quick: bool = False,
         elif callable(progress):
             progress(name)
 
-    figs: list[Path] = []
-    tables: list[Path] = []
-
-    def figure_links(files: list[Path], alt: str) -> list[str]:
-        figs.extend(files)
-        md = []
-        for k, f in enumerate(files, 1):
-            md += [f"![{alt}" + (f", page {k} of {len(files)}" if len(files) > 1 else "") + f"]({f.name})", ""]
-        return md
-
-    md: list[str] = ["# flexkin: reproduction of the paper's analysis", "",
-                     "Generated by `flexkin reproduce`" + (" (quick mode: coarse grids)" if quick else "") + ".", ""]
-
-    # 1. rod model
-    rc = _rod_check(8 if quick else 24)
-    tick("rod model")
-    md += ["## 1. Rod model (Eqs. 9–14) against an ODE integration", "",
-           f"{rc['rods']} random rods (d-modes 1–3, both signs of k): largest tip position error "
-           f"{rc['max_tip_position_error_per_L']:.1e} L, largest tip angle / tip moment error "
-           f"{rc['max_tip_angle_or_moment_error']:.1e} (both at the integration's tolerance).", ""]
-    EI = circular_EI(FIG19["E"], FIG19["radius"])
-    xs = np.linspace(FIG19["x_start"], FIG19["x_end"], 6 if quick else 36)
-    sweep = rod_sweep(xs, FIG19["tip_y"], FIG19["length"], EI)
-    f = out / "fig19_rod_forces.png"
-    plot_rod_sweep(sweep, str(f))
-    tick("Fig. 19")
-    md += ["### Fig. 19: tip force of one rod along a sweep of its tip", "",
-           f"Nitinol rod L = {FIG19['length']} m, r = {FIG19['radius'] * 1e3:g} mm, tip height "
-           f"{FIG19['tip_y']} m, tip abscissa {FIG19['x_start']} → {FIG19['x_end']} m.", ""]
-    md += figure_links([f], "Fig. 19")
-
-    # 2. parameter space
-    f1, f2 = out / "fig2_parameter_space_mode1.png", out / "fig2_parameter_space_mode2.png"
-    n = 121 if quick else 361
-    plot_parameter_space(1, "R", str(f1), n=n)
-    plot_parameter_space(2, "R", str(f2), n=n)
-    tick("parameter space")
-    md += ["## 2. Parameter space (Fig. 2a) and its rectangular k_r form (Fig. 6)", ""]
-    md += figure_links([f1], "mode 1") + figure_links([f2], "mode 2")
-
-    # 3. Fig. 7
+    rep = _Report(out, quick, tick, ["# flexkin: reproduction of the paper's analysis", "",
+                                     "Generated by `flexkin reproduce`" + (" (quick mode: coarse grids)" if quick
+                                                                          else "") + ".", ""])
     proto = load_mechanism(ex / "prototype_3pfr.toml")
-    r90 = ik(proto, (0.0, 0.0, np.radians(90)), load=(0, 0, 0))
-    f = out / "fig7_curves_prototype_90deg.png"
-    plot_curves(r90, str(f))
-    tick("Fig. 7")
-    md += ["## 3. Geometric-condition curves (Fig. 7), prototype at (0, 0, 90°)", "",
-           f"{len(r90)} IK solutions; dots are labelled with their ids (dots at one place share a label).", ""]
-    md += figure_links([f], "Fig. 7")
-
-    # 4. IK case studies
-    counts: dict[str, dict[str, int]] = {}
-    pose = (CASE_POSE[0], CASE_POSE[1], np.radians(CASE_POSE[2]))
-    md += ["## 4. Full inverse kinematics of the case studies (Figs. 10–15)", "",
-           f"Pose ({CASE_POSE[0]} m, {CASE_POSE[1]} m, {CASE_POSE[2]}°), unloaded, d-modes 1–2. Solutions are "
-           "numbered by id, the same in the tables, the CSV files and the figures; colours are d-mode combinations.",
-           ""]
-    for key, fname, label in (("IK 3-PFR", "unit_3pfr.toml", "3-P̲FR (prismatic)"),
-                              ("IK 3-RFR", "unit_3rfr.toml", "3-R̲FR (revolute)"),
-                              ("IK 3-PFR(length)", "unit_3pfr_length.toml", "3-PF̲R (length)")):
-        mech = load_mechanism(ex / fname)
-        res = ik(mech, pose, load=(0, 0, 0))
-        counts[key] = res.by_modes()
-        stem = f"ik_{fname.replace('.toml', '')}"
-        tab = write_solutions_csv(res, out / f"{stem}.csv")
-        tables.append(tab)
-        md += [f"### {label}", ""] + _case_block(res, label, tab.name)
-        shown = res.select(stable_only=True) if quick else res
-        what = "the stable solutions" if quick else "every solution"
-        md += [f"Figure: {what}" + (f" ({len(shown)})" if quick else "") + ".", ""]
-        md += figure_links(write_solution_pages(shown, out / f"{stem}.png"), key)
-        tick(key)
-
-    # 5. FK of the 3-RFR (Fig. 16)
     rfr = load_mechanism(ex / "unit_3rfr.toml")
-    base = ik(rfr, pose, load=(0, 0, 0))
-    u = base.solutions[0].inputs
-    res = fk(rfr, u, load=(0, 0, 0))
-    counts["FK 3-RFR"] = res.by_modes()
-    tab = write_solutions_csv(res, out / "fk_unit_3rfr.csv")
-    tables.append(tab)
-    st = res.select(stable_only=True)
-    st111 = type(st)(**{**st.__dict__, "solutions": tuple(s for s in st.solutions if s.modes == (1, 1, 1)),
-                        "_cache": {}})
-    md += ["## 5. Full forward kinematics of the 3-R̲FR (Fig. 16)", "",
-           "Inputs (deg): " + ", ".join(f"{np.degrees(v):.2f}" for v in u)
-           + f" (those of IK solution {base.solutions[0].id} of section 4).", ""]
-    md += _case_block(res, "FK", tab.name)
-    md += [f"Stable with d-modes 111: {len(st111)}, of which {_feasibility_summary(st111.feasibility())}. "
-           "The paper finds 4 stable mode-111 solutions for its differently sized case.", ""]
-    md += figure_links(write_solution_pages(st111, out / "fk_unit_3rfr_stable_111.png"), "Fig. 16")
-    tick("FK 3-RFR")
-
-    # 6. workspace (Fig. 17)
-    step = 0.05 if quick else 0.015
-    ws = workspace(rfr, np.radians(20.0), step=step, bounds=(-0.6, 0.6, -0.6, 0.6), all_aspects=False)
-    tick("workspace")
-    md += ["## 6. Constant-orientation workspace (Fig. 17)", "", "```", ws.summary(), "```", "",
-           "One aspect: the region reached from the first stable IK solution at the seed. Black: IK singularity "
-           "(the continued solution folds back); orange: FK singularity / loss of stability; grey: unresolved "
-           "(a rod straight under tension, see the README).", ""]
-    f = out / "fig17_workspace_unit_3rfr_20deg.png"
-    plot_workspace([ws], str(f))
-    md += figure_links([f], "Fig. 17")
-
-    # 7. Tables 1 and 2 (prototype, theory columns)
-    r1 = fk(proto, (0.025, 0.025, 0.025), load=(0, 0, 0))
-    table1 = []
-    for target in PAPER_TABLE1:
-        hit = [s for s in r1.solutions if s.stable and s.modes == (1, 1, 1)
-               and abs(np.degrees(s.pose[2]) - target) < 5.0]
-        s = hit[0] if hit else None
-        table1.append({"paper_theta_deg": target,
-                       "flexkin_pose": None if s is None else [s.pose[0], s.pose[1], float(np.degrees(s.pose[2]))],
-                       "stable": None if s is None else s.stable, "id": None if s is None else s.id,
-                       "solution": s})
-    tick("Table 1")
-    table2 = []
-    for th, rho_paper in PAPER_TABLE2.items():
-        r = ik(proto, (0.0, 0.0, np.radians(th)), load=(0, 0, 0))
-        sym = [s for s in r.solutions if s.stable and s.modes == (1, 1, 1) and np.ptp(s.inputs) < 1e-9]
-        sym.sort(key=lambda s: abs(s.inputs[0] - rho_paper))
-        table2.append({"theta_deg": th, "paper_rho": rho_paper,
-                       "flexkin_rho": None if not sym else float(sym[0].inputs[0]),
-                       "stable": None if not sym else sym[0].stable, "solution": None if not sym else sym[0]})
-    tick("Table 2")
-    md += ["## 7. Tables 1 and 2 (prototype `examples/prototype_3pfr.toml`, theory columns)", "",
-           "### Table 1: FK at ρ = (25, 25, 25) mm", "",
-           f"Positions to {LENGTH_RESOLUTION:g} m (the solvers' resolution here), angles to 0.01°.", "",
-           "| paper θ [deg] | flexkin pose (x [m], y [m], θ [deg]) | stable |", "|---|---|---|"]
-    for row in table1:
-        p = row["flexkin_pose"]
-        md.append(f"| {row['paper_theta_deg']:g} | "
-                  + ("not found" if p is None else f"({fmt_length(p[0])}, {fmt_length(p[1])}, {p[2]:.2f})")
-                  + f" | {row['stable']} |")
-    md += ["", "### Table 2: IK at (0, 0, θ), symmetric stable d-mode-111 solution", "",
-           "| θ [deg] | paper ρ [m] | flexkin ρ [m] | stable |", "|---|---|---|---|"]
-    for row in table2:
-        md.append(f"| {row['theta_deg']:g} | {row['paper_rho']:.3f} | "
-                  + ("not found" if row["flexkin_rho"] is None else f"{row['flexkin_rho']:.4f}")
-                  + f" | {row['stable']} |")
-    md += [""] + _cosserat_section(proto, r1, table1, table2)
+    pose = (CASE_POSE[0], CASE_POSE[1], np.radians(CASE_POSE[2]))
+    rc = _section_rod(rep)
+    _section_parameter_space(rep)
+    _section_curves(rep, proto)
+    counts = _section_ik_cases(rep, ex, pose)
+    counts["FK 3-RFR"] = _section_fk(rep, rfr, pose)
+    _section_workspace(rep, rfr)
+    r1, table1, table2 = _section_tables(rep, proto)
+    rep.md += [""] + _cosserat_section(proto, r1, table1, table2)
     tick("Cosserat")
-    md += [""] + _calibration_section(out, figs)
+    rep.md += [""] + _calibration_section(out, rep.figs)
     tick("calibration")
     elapsed = time.perf_counter() - t0
-    md += ["", f"Total time {elapsed:.0f} s."]
+    rep.md += ["", f"Total time {elapsed:.0f} s."]
     report = out / "report.md"
-    text = "\n".join(md) + "\n"
+    text = "\n".join(rep.md) + "\n"
     report.write_text(text, encoding="utf-8")
     html_path = out / "report.html"
     html_path.write_text(markdown_to_html(text, out, "flexkin: reproduction of the paper's analysis"),
@@ -588,4 +595,5 @@ def reproduce(out: str | Path = "flexkin_report", quick: bool = False,
     tick("report")
     if bar is not None:
         bar.close()
-    return ReproduceResult(out, report, tuple(figs), table1, table2, rc, elapsed, counts, html_path, tuple(tables))
+    return ReproduceResult(out, report, tuple(rep.figs), table1, table2, rc, elapsed, counts, html_path,
+                           tuple(rep.tables))

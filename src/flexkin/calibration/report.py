@@ -153,7 +153,7 @@ def write_report(res, out: str | Path, mechanism_path: str | Path | None = None,
     list of Path
         The files written.
     """
-    from ..reproduce import markdown_to_html  # one Markdown renderer for every report
+    from ..io.html_report import markdown_to_html  # one Markdown renderer for every report
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -6,15 +6,17 @@ was expected; library code below the boundary trusts its inputs.
 
 from __future__ import annotations
 
+import difflib
 import math
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["as_triple", "as_pair", "check_max_mode", "check_budget", "check_positive", "check_count",
            "check_angle_deg", "angle_note", "check_grid", "short_text", "MAX_MODE_LIMIT", "ANGLE_LIMIT_DEG",
-           "MAX_GRID_POINTS"]
+           "MAX_GRID_POINTS", "KeyPathError", "type_name", "suggest_key", "key_text", "check_table_keys",
+           "file_number", "file_choice"]
 
 #: largest d-mode any search accepts
 MAX_MODE_LIMIT = 6
@@ -143,3 +145,131 @@ def check_count(value: Any, what: str, lo: int = 1, hi: int = 100_000) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
         raise ValueError(f"{what} must be an integer between {lo} and {hi}, got {value!r}")
     return int(value)
+
+
+# ---- key paths of the input files (mechanism and study TOML) ----------------------------------
+class KeyPathError(ValueError):
+    """A problem at a key path of an input file; the loaders add the file's name.
+
+    Parameters
+    ----------
+    path : str
+        The key path (``"leg[2].origin"``; empty for the file's top level).
+    problem : str
+        What is wrong there.
+    """
+
+    def __init__(self, path: str, problem: str) -> None:
+        super().__init__(f"{path}: {problem}" if path else problem)
+        self.path = path
+        self.problem = problem
+
+
+def type_name(value: Any) -> str:
+    """``value``'s TOML kind with an article (``"a table"``, ``"a number"``, ...), for messages."""
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, dict):
+        return "a table"
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, (int, float)):
+        return "a number"
+    return f"a {type(value).__name__}"
+
+
+def _edit_distance(a: str, b: str) -> int:
+    """Optimal-string-alignment distance (insertions, deletions, substitutions, transpositions)."""
+    prev2: list[int] = []
+    prev = list(range(len(b) + 1))
+    for i in range(1, len(a) + 1):
+        cur = [i] + [0] * len(b)
+        for j in range(1, len(b) + 1):
+            cost = 0 if a[i - 1] == b[j - 1] else 1
+            cur[j] = min(prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + cost)
+            if i > 1 and j > 1 and a[i - 1] == b[j - 2] and a[i - 2] == b[j - 1]:
+                cur[j] = min(cur[j], prev2[j - 2] + 1)
+        prev2, prev = prev, cur
+    return prev[-1]
+
+
+#: keys longer than this are not compared with the allowed ones (no allowed key is anywhere
+#: near; a megabyte-long key would take a minute of edit distances) and are shown cut
+SUGGEST_MAX_LEN = 64
+
+
+def suggest_key(key: str, allowed: tuple[str, ...] | list[str]) -> str | None:
+    """The allowed key ``key`` is most likely a misspelling of, or None.
+
+    Case is ignored; a key within one edit (two for keys of five or more characters) of an
+    allowed key it shares a letter with, or similar to it by difflib's ratio (>= 0.6, as
+    :func:`difflib.get_close_matches`), is a candidate; the closest candidate wins.  Keys
+    longer than :data:`SUGGEST_MAX_LEN` characters get no suggestion.
+    """
+    if len(key) > SUGGEST_MAX_LEN:
+        return None
+    k = key.lower()
+    best: tuple[int, float, str] | None = None
+    for a in allowed:
+        d = _edit_distance(k, a.lower())
+        ratio = difflib.SequenceMatcher(None, k, a.lower()).ratio()
+        near = d <= (2 if min(len(a), len(k)) >= 5 else 1) and bool(set(k) & set(a.lower()))
+        if near or ratio >= 0.6:
+            cand = (d, -ratio, a)
+            if best is None or cand < best:
+                best = cand
+    return None if best is None else best[2]
+
+
+def key_text(key: Any) -> str:
+    """A key as written in a key path: bare if it is a plain TOML bare key, quoted otherwise;
+    a long key is cut (its length is given)."""
+    key = str(key)
+    if len(key) > SUGGEST_MAX_LEN:
+        return short_text(key)
+    if key and all(c.isascii() and (c.isalnum() or c in "_-") for c in key):
+        return key
+    return repr(key)
+
+
+def check_table_keys(table: Mapping[str, Any], allowed: tuple[str, ...], path: str) -> None:
+    """Reject the first key of ``table`` not in ``allowed`` (:class:`KeyPathError` naming it,
+    with a did-you-mean hint and the allowed keys)."""
+    for key in table:
+        if key in allowed:
+            continue
+        close = suggest_key(str(key), allowed)
+        hint = f" (did you mean {close!r}?)" if close else ""
+        shown = key_text(key)
+        raise KeyPathError(f"{path}.{shown}" if path else shown,
+                           f"unknown key{hint}; allowed keys here: {', '.join(allowed)}")
+
+
+def file_number(value: Any, path: str) -> float:
+    """A finite number read from an input file at key path ``path``, or :class:`KeyPathError`."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise KeyPathError(path, f"expected a number, got {type_name(value)} {short_text(value)}")
+    try:
+        v = float(value)
+    except OverflowError:  # an integer beyond the float range
+        raise KeyPathError(path, "expected a finite number, got an integer too large for a float "
+                                 f"({short_text(value)})") from None
+    if not math.isfinite(v):
+        raise KeyPathError(path, f"expected a finite number, got {v!r}")
+    return v
+
+
+def file_choice(value: Any, choices: tuple[str, ...], path: str, what: str) -> str:
+    """One of the names ``choices`` read from an input file at ``path`` (``what`` names the kind,
+    e.g. ``"actuation"``), or :class:`KeyPathError` with a did-you-mean hint."""
+    if not isinstance(value, str):
+        raise KeyPathError(path, f"expected a string, got {type_name(value)} {short_text(value)}")
+    if value not in choices:
+        close = difflib.get_close_matches(value.lower(), choices, n=1, cutoff=0.5) \
+            if len(value) <= SUGGEST_MAX_LEN else []
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise KeyPathError(path, f"unknown {what} {short_text(value)} (expected one of "
+                                 f"{', '.join(map(repr, choices))}{hint})")
+    return value

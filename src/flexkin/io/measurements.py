@@ -22,12 +22,13 @@ which legs are revolute); :mod:`flexkin.calibration` converts them once.  Every 
 from __future__ import annotations
 
 import csv
-import difflib
 import io
 import math
 import os
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping
+
+from ..core.validation import short_text, suggest_key
 
 __all__ = ["MeasurementError", "MeasurementRow", "Measurements", "read_measurements", "measurements_from_rows",
            "DEFAULT_SIGMA", "COLUMNS"]
@@ -151,9 +152,9 @@ def _check_header(header: Iterable[str], src: str) -> list[str]:
     cols = [str(h).strip() for h in header]
     for c in cols:
         if c not in COLUMNS:
-            close = difflib.get_close_matches(c, COLUMNS, n=1, cutoff=0.6)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise MeasurementError(f"{src}: header: unknown column {c!r}{hint}; columns are "
+            close = suggest_key(c, COLUMNS)
+            hint = f" (did you mean {close!r}?)" if close else ""
+            raise MeasurementError(f"{src}: header: unknown column {short_text(c)}{hint}; columns are "
                                    f"{', '.join(_REQUIRED)} and optionally {', '.join(_OPTIONAL)}")
     dup = {c for c in cols if cols.count(c) > 1}
     if dup:
@@ -263,9 +264,9 @@ def measurements_from_rows(rows: Iterable[Mapping[str, Any]], source: str = "<ro
     for k, rec in enumerate(rows, start=1):
         for c in rec:
             if c not in COLUMNS:
-                close = difflib.get_close_matches(str(c), COLUMNS, n=1, cutoff=0.6)
-                hint = f" (did you mean {close[0]!r}?)" if close else ""
-                raise MeasurementError(f"{source}: row {k}: unknown column {c!r}{hint}")
+                close = suggest_key(str(c), COLUMNS)
+                hint = f" (did you mean {close!r}?)" if close else ""
+                raise MeasurementError(f"{source}: row {k}: unknown column {short_text(c)}{hint}")
         out.append(_row(rec, k, 0, source))
     if not out:
         raise MeasurementError(f"{source}: no measurement rows")

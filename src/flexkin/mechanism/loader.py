@@ -33,7 +33,7 @@ revolute range in radians, ``angle`` on a revolute leg, ...) are accepted with a
 expected (:mod:`flexkin.mechanism.plausibility`).  Full reference: ``docs/mechanism_file.md``.
 
 Unknown keys are errors in every table (never silently ignored), with a ``did you mean``
-hint for likely misspellings (:func:`suggest_key`).
+hint for likely misspellings (:func:`flexkin.core.validation.suggest_key`).
 
 Supported ranges (beyond them squares and fourth powers of the values would overflow or
 underflow in double precision): rod ``length`` and ``radius`` in
@@ -51,7 +51,6 @@ MechanismErrors too.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import math
 import os
 import tomllib
@@ -59,7 +58,8 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from flexkin.core.validation import check_angle_deg, short_text
+from flexkin.core.validation import (KeyPathError, check_angle_deg, check_table_keys, file_choice, file_number,
+                                     short_text, type_name)
 from flexkin.errors import FlexkinWarning, MechanismError
 from flexkin.mechanism.joints import JOINTS
 from flexkin.mechanism.plausibility import check_mechanism_data
@@ -100,136 +100,31 @@ _ROD_LIMITS = {
 }
 
 
-class _KeyProblem(Exception):
-    """Internal: a problem at a key path; turned into a MechanismError with the file name."""
-
-    def __init__(self, path: str, message: str) -> None:
-        super().__init__(f"{path}: {message}" if path else message)
-
-
-# ---- small typed accessors -----------------------------------------------------------
 def _show(value: Any) -> str:
     return short_text(value)
 
 
-def _type_name(value: Any) -> str:
-    if isinstance(value, bool):
-        return "a boolean"
-    if isinstance(value, dict):
-        return "a table"
-    if isinstance(value, list):
-        return "a list"
-    if isinstance(value, str):
-        return "a string"
-    if isinstance(value, (int, float)):
-        return "a number"
-    return f"a {type(value).__name__}"
-
-
-def _edit_distance(a: str, b: str) -> int:
-    """Optimal-string-alignment distance (insertions, deletions, substitutions, transpositions)."""
-    prev2: list[int] = []
-    prev = list(range(len(b) + 1))
-    for i in range(1, len(a) + 1):
-        cur = [i] + [0] * len(b)
-        for j in range(1, len(b) + 1):
-            cost = 0 if a[i - 1] == b[j - 1] else 1
-            cur[j] = min(prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + cost)
-            if i > 1 and j > 1 and a[i - 1] == b[j - 2] and a[i - 2] == b[j - 1]:
-                cur[j] = min(cur[j], prev2[j - 2] + 1)
-        prev2, prev = prev, cur
-    return prev[-1]
-
-
-#: keys longer than this are not compared with the allowed ones (no allowed key is anywhere
-#: near; a megabyte-long key would take a minute of edit distances)
-_SUGGEST_MAX_LEN = 64
-
-
-def suggest_key(key: str, allowed: tuple[str, ...]) -> str | None:
-    """The allowed key ``key`` is most likely a misspelling of, or None.
-
-    Case is ignored; a key within one edit (two for keys of five or more characters) of an
-    allowed key it shares a letter with, or similar to it by difflib's ratio (>= 0.6, as
-    :func:`difflib.get_close_matches`), is a candidate; the closest candidate wins.  Keys
-    longer than :data:`_SUGGEST_MAX_LEN` characters get no suggestion.
-    """
-    if len(key) > _SUGGEST_MAX_LEN:
-        return None
-    k = key.lower()
-    best: tuple[int, float, str] | None = None
-    for a in allowed:
-        d = _edit_distance(k, a.lower())
-        ratio = difflib.SequenceMatcher(None, k, a.lower()).ratio()
-        near = d <= (2 if min(len(a), len(k)) >= 5 else 1) and bool(set(k) & set(a.lower()))
-        if near or ratio >= 0.6:
-            cand = (d, -ratio, a)
-            if best is None or cand < best:
-                best = cand
-    return None if best is None else best[2]
-
-
-def _key_text(key: Any) -> str:
-    """A key as written in a key path: bare if it is a plain TOML bare key, quoted otherwise;
-    a long key is cut (its length is given)."""
-    key = str(key)
-    if len(key) > _SUGGEST_MAX_LEN:
-        return short_text(key)
-    if key and all(c.isascii() and (c.isalnum() or c in "_-") for c in key):
-        return key
-    return repr(key)
-
-
-def _check_keys(table: dict[str, Any], allowed: tuple[str, ...], path: str) -> None:
-    """Reject unknown keys, with a did-you-mean hint."""
-    for key in table:
-        if key in allowed:
-            continue
-        close = suggest_key(str(key), allowed)
-        hint = f" (did you mean {close!r}?)" if close else ""
-        shown = _key_text(key)
-        where = f"{path}.{shown}" if path else shown
-        known = ", ".join(allowed)
-        raise _KeyProblem(where, f"unknown key{hint}; allowed keys here: {known}")
-
-
 def _table(value: Any, path: str) -> dict[str, Any]:
     if not isinstance(value, dict):
-        raise _KeyProblem(path, f"expected a table, got {_type_name(value)} {_show(value)}")
+        raise KeyPathError(path, f"expected a table, got {type_name(value)} {_show(value)}")
     return value
-
-
-def _as_float(value: int | float, path: str, shown: Any) -> float:
-    try:
-        return float(value)
-    except OverflowError:  # an integer beyond the float range
-        raise _KeyProblem(path, f"expected a finite number, got an integer too large for a float ({_show(shown)})") from None
-
-
-def _number(value: Any, path: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise _KeyProblem(path, f"expected a number, got {_type_name(value)} {_show(value)}")
-    v = _as_float(value, path, value)
-    if not math.isfinite(v):
-        raise _KeyProblem(path, f"expected a finite number, got {v!r}")
-    return v
 
 
 def _angle(value: Any, path: str) -> float:
     """An angle in degrees, within the supported range (:data:`~flexkin.core.validation.ANGLE_LIMIT_DEG`)."""
-    v = _number(value, path)
+    v = file_number(value, path)
     try:
         return check_angle_deg(v, "")
     except ValueError as e:
-        raise _KeyProblem(path, str(e)) from None
+        raise KeyPathError(path, str(e)) from None
 
 
 def _positive(value: Any, path: str, unit: str, limits: tuple[float, float] | None = None) -> float:
-    v = _number(value, path)
+    v = file_number(value, path)
     if v <= 0.0:
-        raise _KeyProblem(path, f"must be > 0 ({unit}), got {v!r}")
+        raise KeyPathError(path, f"must be > 0 ({unit}), got {v!r}")
     if limits is not None and not limits[0] <= v <= limits[1]:
-        raise _KeyProblem(path, f"{v:.6g} {unit} is outside the supported range [{limits[0]:g}, {limits[1]:g}] {unit}")
+        raise KeyPathError(path, f"{v:.6g} {unit} is outside the supported range [{limits[0]:g}, {limits[1]:g}] {unit}")
     return v
 
 
@@ -240,18 +135,22 @@ def _is_number(v: Any) -> bool:
 def _pair(value: Any, path: str, what: str = "a list of two numbers", bound: float | None = None) -> tuple[float, float]:
     """Two finite numbers; with ``bound``, each of magnitude <= bound (m)."""
     if not isinstance(value, list) or len(value) != 2 or not all(_is_number(v) for v in value):
-        raise _KeyProblem(path, f"expected {what}, got {_show(value)}")
-    a, b = _as_float(value[0], path, value), _as_float(value[1], path, value)
+        raise KeyPathError(path, f"expected {what}, got {_show(value)}")
+    try:
+        a, b = float(value[0]), float(value[1])
+    except OverflowError:  # an integer beyond the float range
+        raise KeyPathError(path, "expected a finite number, got an integer too large for a float "
+                                 f"({_show(value)})") from None
     if not (math.isfinite(a) and math.isfinite(b)):
-        raise _KeyProblem(path, f"expected finite numbers, got {_show(value)}")
+        raise KeyPathError(path, f"expected finite numbers, got {_show(value)}")
     if bound is not None and max(abs(a), abs(b)) > bound:
-        raise _KeyProblem(path, f"values must be within +-{bound:g} m, got {_show(value)}")
+        raise KeyPathError(path, f"values must be within +-{bound:g} m, got {_show(value)}")
     return (a, b)
 
 
 def _require(table: dict[str, Any], key: str, path: str, what: str) -> Any:
     if key not in table:
-        raise _KeyProblem(f"{path}.{key}" if path else key, f"missing ({what})")
+        raise KeyPathError(f"{path}.{key}" if path else key, f"missing ({what})")
     return table[key]
 
 
@@ -272,14 +171,14 @@ def _material_values(table: dict[str, Any], path: str) -> dict[str, float]:
     if "G" in table:
         out["G"] = _positive(table["G"], f"{path}.G", "Pa", STIFFNESS_LIMITS)
     if "poisson" in table:
-        nu = _number(table["poisson"], f"{path}.poisson")
+        nu = file_number(table["poisson"], f"{path}.poisson")
         if not -1.0 < nu <= 0.5:
-            raise _KeyProblem(f"{path}.poisson", f"Poisson's ratio must lie in (-1, 0.5], got {nu!r}")
+            raise KeyPathError(f"{path}.poisson", f"Poisson's ratio must lie in (-1, 0.5], got {nu!r}")
         out["poisson"] = nu
     if "density" in table:
-        rho = _number(table["density"], f"{path}.density")
+        rho = file_number(table["density"], f"{path}.density")
         if rho < 0.0:
-            raise _KeyProblem(f"{path}.density", f"must be >= 0 (kg/m^3), got {rho!r}")
+            raise KeyPathError(f"{path}.density", f"must be >= 0 (kg/m^3), got {rho!r}")
         out["density"] = rho
     if "shear_coefficient" in table:
         out["shear_coefficient"] = _positive(table["shear_coefficient"], f"{path}.shear_coefficient",
@@ -292,7 +191,7 @@ def _resolve_material(defaults: dict[str, float], overrides: dict[str, float], E
     """A leg's material keys (``G``, ``poisson``, ``density``, ``shear_coefficient``): the leg's
     own values over the ``[rod]`` defaults.  A leg giving ``G`` or ``poisson`` drops the other
     one inherited from ``[rod]``; ``G`` and ``poisson`` given together must agree with ``E``
-    (``G = E / (2 (1 + poisson))`` to 1e-6).  Raises ``_KeyProblem`` (loader-internal)."""
+    (``G = E / (2 (1 + poisson))`` to 1e-6).  Raises ``KeyPathError`` (loader-internal)."""
     merged = dict(defaults)
     if {"G", "poisson"} & overrides.keys():
         merged.pop("G", None)
@@ -302,7 +201,7 @@ def _resolve_material(defaults: dict[str, float], overrides: dict[str, float], E
         G_c = E / (2.0 * (1.0 + merged["poisson"]))
         if abs(merged["G"] - G_c) > _G_RTOL * max(merged["G"], G_c):
             where = path if ({"G", "poisson"} & overrides.keys()) else "rod"
-            raise _KeyProblem(f"{where}.G", f"G = {merged['G']:.6g} Pa disagrees with E / (2 (1 + poisson)) = "
+            raise KeyPathError(f"{where}.G", f"G = {merged['G']:.6g} Pa disagrees with E / (2 (1 + poisson)) = "
                               f"{G_c:.6g} Pa (E = {E:g} Pa, poisson = {merged['poisson']:g}); give either G or "
                               "poisson, or make them agree")
     return merged
@@ -310,7 +209,7 @@ def _resolve_material(defaults: dict[str, float], overrides: dict[str, float], E
 
 def _environment(value: Any) -> tuple[float, float] | None:
     table = _table(value, "environment")
-    _check_keys(table, _ENVIRONMENT_KEYS, "environment")
+    check_table_keys(table, _ENVIRONMENT_KEYS, "environment")
     if "gravity" not in table:
         return None
     return _pair(table["gravity"], "environment.gravity", "[gx, gy] in m/s^2")
@@ -333,7 +232,7 @@ def _resolve_rod(
             lo, hi = STIFFNESS_LIMITS
             if not lo <= EI_c <= hi:
                 where = path if ({"E", "radius"} & overrides.keys()) else "rod"
-                raise _KeyProblem(
+                raise KeyPathError(
                     f"{where}.radius",
                     f"the bending stiffness E*pi*radius**4/4 = {EI_c:.6g} N m^2 (E = {E:g} Pa from {origin['E']}, "
                     f"radius = {radius:g} m from {origin['radius']}) is outside the supported range "
@@ -342,7 +241,7 @@ def _resolve_rod(
             EI = EI_c
         elif abs(EI - EI_c) > _EI_RTOL * max(abs(EI), abs(EI_c)):
             all_rod = not ({"EI", "E", "radius"} & overrides.keys())
-            raise _KeyProblem(
+            raise KeyPathError(
                 "rod.EI" if all_rod else f"{path}.EI",
                 f"EI = {EI:.10g} N m^2 (from {origin['EI']}) disagrees with E*pi*radius**4/4 = "
                 f"{EI_c:.10g} N m^2 (E from {origin['E']}, radius from {origin['radius']}); "
@@ -350,7 +249,7 @@ def _resolve_rod(
             )
     if EI is None:
         missing = "E" if radius is not None else ("radius" if E is not None else "EI")
-        raise _KeyProblem(
+        raise KeyPathError(
             f"{path}.{missing}",
             "missing: the bending stiffness needs 'EI', or both 'E' and 'radius', "
             "in [rod] or in this [[leg]]",
@@ -359,7 +258,7 @@ def _resolve_rod(
         length = None  # the input is the free length; a given length is ignored
     else:
         if "length" not in merged:
-            raise _KeyProblem(
+            raise KeyPathError(
                 f"{path}.length", f"missing (a {actuation} leg needs the rod length in m, in [rod] or in this [[leg]])"
             )
         length = merged["length"]
@@ -369,18 +268,9 @@ def _resolve_rod(
 def _leg(table: Any, i: int, rod_defaults: dict[str, float], material_defaults: dict[str, float] | None = None) -> Leg:
     path = f"leg[{i + 1}]"
     table = _table(table, path)
-    _check_keys(table, _LEG_KEYS, path)
+    check_table_keys(table, _LEG_KEYS, path)
     act = _require(table, "actuation", path, 'one of "prismatic", "revolute", "length"')
-    if not isinstance(act, str):
-        raise _KeyProblem(f"{path}.actuation", f"expected a string, got {_type_name(act)} {_show(act)}")
-    if act not in ACTUATIONS:
-        close = difflib.get_close_matches(act.lower(), ACTUATIONS, n=1, cutoff=0.5) \
-            if len(act) <= _SUGGEST_MAX_LEN else []
-        hint = f"; did you mean {close[0]!r}?" if close else ""
-        raise _KeyProblem(
-            f"{path}.actuation",
-            f"unknown actuation {_show(act)} (expected one of {', '.join(map(repr, ACTUATIONS))}{hint})",
-        )
+    act = file_choice(act, ACTUATIONS, f"{path}.actuation", "actuation")
     origin = _pair(_require(table, "origin", path, "[x, y] in m"), f"{path}.origin", bound=LENGTH_LIMITS[1])
     if act == "revolute":
         angle_deg = _angle(table["angle"], f"{path}.angle") if "angle" in table else 0.0
@@ -397,17 +287,17 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float], material_defaults: 
             lo, hi = _angle(lo, f"{path}.range"), _angle(hi, f"{path}.range")
         unit = "deg" if act == "revolute" else "m"
         if not lo < hi:
-            raise _KeyProblem(f"{path}.range", f"lower bound must be < upper bound, got [{lo:g}, {hi:g}] {unit}")
+            raise KeyPathError(f"{path}.range", f"lower bound must be < upper bound, got [{lo:g}, {hi:g}] {unit}")
         if act == "length" and lo <= 0.0:
-            raise _KeyProblem(
+            raise KeyPathError(
                 f"{path}.range", f"a length leg's range is a free rod length and must be > 0, got [{lo:g}, {hi:g}] m"
             )
         rng = (math.radians(lo), math.radians(hi)) if act == "revolute" else (lo, hi)
     offset = 0.0
     if "offset" in table:  # the input's zero offset: m, or deg for revolute legs
-        offset = _number(table["offset"], f"{path}.offset")
+        offset = file_number(table["offset"], f"{path}.offset")
         if act != "revolute" and abs(offset) > LENGTH_LIMITS[1]:
-            raise _KeyProblem(f"{path}.offset", f"must be within +-{LENGTH_LIMITS[1]:g} m, got {offset!r}")
+            raise KeyPathError(f"{path}.offset", f"must be within +-{LENGTH_LIMITS[1]:g} m, got {offset!r}")
         if act == "revolute":
             offset = math.radians(offset)
     rod = _resolve_rod(rod_defaults, _rod_values(table, path), act, path)
@@ -415,14 +305,7 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float], material_defaults: 
     if material:
         rod = dataclasses.replace(rod, **material)
     joint = table.get("joint", "pinned")
-    if not isinstance(joint, str):
-        raise _KeyProblem(f"{path}.joint", f"expected a string, got {_type_name(joint)} {_show(joint)}")
-    if joint not in JOINTS:
-        close = difflib.get_close_matches(joint.lower(), JOINTS, n=1, cutoff=0.5) \
-            if len(joint) <= _SUGGEST_MAX_LEN else []
-        hint = f"; did you mean {close[0]!r}?" if close else ""
-        raise _KeyProblem(f"{path}.joint",
-                          f"unknown joint {_show(joint)} (expected one of {', '.join(map(repr, JOINTS))}{hint})")
+    joint = file_choice(joint, JOINTS, f"{path}.joint", "joint")
     tip_angle = 0.0
     if JOINTS[joint].carries_moment:
         tip_angle = _angle(_require(table, "tip_angle", path, "the rod's tangent at the platform point, in degrees "
@@ -437,60 +320,60 @@ def _leg(table: Any, i: int, rod_defaults: dict[str, float], material_defaults: 
 
 def _platform(value: Any) -> Platform:
     table = _table(value, "platform")
-    _check_keys(table, _PLATFORM_KEYS, "platform")
+    check_table_keys(table, _PLATFORM_KEYS, "platform")
     pts = _require(table, "attach", "platform", "three points [[x1, y1], [x2, y2], [x3, y3]] in m")
     if not isinstance(pts, list) or len(pts) != 3:
         n = f"{len(pts)} entries" if isinstance(pts, list) else _show(pts)
-        raise _KeyProblem("platform.attach", f"expected exactly three points [[x1, y1], [x2, y2], [x3, y3]], got {n}")
+        raise KeyPathError("platform.attach", f"expected exactly three points [[x1, y1], [x2, y2], [x3, y3]], got {n}")
     b = tuple(_pair(p, f"platform.attach[{j + 1}]", "a point [x, y]", bound=LENGTH_LIMITS[1]) for j, p in enumerate(pts))
     try:
         return Platform(attach=b)  # type: ignore[arg-type]
     except MechanismError as exc:  # coincident / collinear points
         msg = str(exc).removeprefix("platform.attach: ")
-        raise _KeyProblem("platform.attach", msg) from None
+        raise KeyPathError("platform.attach", msg) from None
 
 
 def _load(value: Any) -> tuple[float, float, float]:
     table = _table(value, "load")
-    _check_keys(table, _LOAD_KEYS, "load")
+    check_table_keys(table, _LOAD_KEYS, "load")
     fx, fy = _pair(table["force"], "load.force", "[Fx, Fy] in N") if "force" in table else (0.0, 0.0)
-    mz = _number(table["moment"], "load.moment") if "moment" in table else 0.0
+    mz = file_number(table["moment"], "load.moment") if "moment" in table else 0.0
     return (fx, fy, mz)
 
 
 def _mechanism(data: Any, default_name: str, source: str | None, warn_prefix: str = "") -> Mechanism:
     data = _table(data, "")
-    _check_keys(data, _TOP_KEYS, "")
+    check_table_keys(data, _TOP_KEYS, "")
     name = data.get("name", default_name)
     if not isinstance(name, str):
-        raise _KeyProblem("name", f"expected a string, got {_type_name(name)} {_show(name)}")
+        raise KeyPathError("name", f"expected a string, got {type_name(name)} {_show(name)}")
     rod_defaults: dict[str, float] = {}
     material_defaults: dict[str, float] = {}
     if "rod" in data:
         rod_table = _table(data["rod"], "rod")
-        _check_keys(rod_table, _ROD_KEYS + MATERIAL_KEYS, "rod")
+        check_table_keys(rod_table, _ROD_KEYS + MATERIAL_KEYS, "rod")
         rod_defaults = _rod_values(rod_table, "rod")
         material_defaults = _material_values(rod_table, "rod")
     platform = _platform(_require(data, "platform", "", "a [platform] table with 'attach'"))
     legs_raw = _require(data, "leg", "", "three [[leg]] tables")
     if isinstance(legs_raw, dict):
-        raise _KeyProblem("leg", "expected three [[leg]] tables, got a single [leg] table (write [[leg]])")
+        raise KeyPathError("leg", "expected three [[leg]] tables, got a single [leg] table (write [[leg]])")
     if not isinstance(legs_raw, list):
-        raise _KeyProblem("leg", f"expected three [[leg]] tables, got {_type_name(legs_raw)} {_show(legs_raw)}")
+        raise KeyPathError("leg", f"expected three [[leg]] tables, got {type_name(legs_raw)} {_show(legs_raw)}")
     if len(legs_raw) != 3:
-        raise _KeyProblem("leg", f"expected exactly three [[leg]] tables, got {len(legs_raw)}")
+        raise KeyPathError("leg", f"expected exactly three [[leg]] tables, got {len(legs_raw)}")
     legs = tuple(_leg(t, i, rod_defaults, material_defaults) for i, t in enumerate(legs_raw))
     load = _load(data["load"]) if "load" in data else (0.0, 0.0, 0.0)
     gravity = _environment(data["environment"]) if "environment" in data else None
     max_strain = None
     if "limits" in data:
         limits = _table(data["limits"], "limits")
-        _check_keys(limits, _LIMITS_KEYS, "limits")
+        check_table_keys(limits, _LIMITS_KEYS, "limits")
         if "max_strain" in limits:
             max_strain = _positive(limits["max_strain"], "limits.max_strain", "dimensionless strain")
             for i, leg in enumerate(legs):
                 if leg.rod.radius is None:
-                    raise _KeyProblem(
+                    raise KeyPathError(
                         f"leg[{i + 1}].radius",
                         "missing: limits.max_strain needs the rod radius of every leg (in [rod] or in the [[leg]])",
                     )
@@ -499,7 +382,7 @@ def _mechanism(data: Any, default_name: str, source: str | None, warn_prefix: st
             name=name, legs=legs, platform=platform, load=load, max_strain=max_strain, source=source, gravity=gravity
         )  # type: ignore[arg-type]
     except MechanismError as exc:  # coincident leg origins etc.; message already has the key path
-        raise _KeyProblem("", str(exc)) from None
+        raise KeyPathError("", str(exc)) from None
     try:
         notes = check_mechanism_data(data, mech)
     except Exception:  # pragma: no cover - a plausibility check never stops a valid file
@@ -540,7 +423,7 @@ def mechanism_from_dict(data: dict[str, Any], source: str = "<dict>") -> Mechani
     try:
         return _mechanism(data, _default_name(src), None if src.startswith("<") else src,
                           "" if src.startswith("<") else f"{src}: ")
-    except _KeyProblem as exc:
+    except KeyPathError as exc:
         raise MechanismError(f"{src}: {exc}") from None
     except MechanismError as exc:
         raise MechanismError(f"{src}: {exc}") from None

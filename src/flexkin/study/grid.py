@@ -43,11 +43,12 @@ Everything here is pure dictionary manipulation; problems are raised as
 from __future__ import annotations
 
 import copy
-import difflib
 import math
 import re
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
+
+from ..core.validation import suggest_key
 
 __all__ = ["ParamKey", "GridKeyError", "parse_key", "valid_keys", "check_keys", "apply_design",
            "scaled_settings"]
@@ -113,11 +114,8 @@ def valid_keys(n_legs: int = 3) -> list[str]:
 
 def _unknown(key: str, n_legs: int, detail: str = "unknown parameter") -> GridKeyError:
     keys = valid_keys(n_legs)
-    close = difflib.get_close_matches(key, keys, n=1, cutoff=0.6) if len(key) <= 64 else []
-    if not close:
-        low = {k.lower(): k for k in keys}
-        close = [low[key.lower()]] if key.lower() in low else []
-    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    close = suggest_key(key, keys)
+    hint = f" (did you mean {close!r}?)" if close else ""
     return GridKeyError(f"{detail}{hint}; parameters are scale, rod.{{{','.join(_ROD_PROPS)}}}, "
                         f"leg.{{{','.join(_LEG_ALL_PROPS)}}}, leg[i].{{...,origin_angle,origin_x,origin_y}}, "
                         f"platform.{{scale,radius}}, load.{{force_x,force_y,moment}}, limits.max_strain "

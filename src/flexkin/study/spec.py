@@ -15,7 +15,6 @@ Every mistake raises :class:`StudyError` with one message ``"<file>: <key>: <pro
 
 from __future__ import annotations
 
-import difflib
 import hashlib
 import itertools
 import json
@@ -28,7 +27,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..core.validation import short_text
+from ..core.validation import KeyPathError, check_table_keys, file_number, short_text, suggest_key, type_name
 from . import grid as _grid
 from .evaluate import METRICS, ROW_VERSION, DesignTask
 
@@ -47,11 +46,6 @@ MAX_FILE_BYTES = 1024 * 1024
 class StudyError(ValueError):
     """A study file or a study argument is invalid, or the study cannot run; the message is
     one line meant for the user."""
-
-
-class _Problem(Exception):
-    def __init__(self, path: str, message: str) -> None:
-        super().__init__(f"{path}: {message}" if path else message)
 
 
 @dataclass(frozen=True)
@@ -156,79 +150,41 @@ class StudySpec:
 
 
 # ---- value helpers -------------------------------------------------------------------
-def _tname(v: Any) -> str:
-    if isinstance(v, bool):
-        return "a boolean"
-    if isinstance(v, dict):
-        return "a table"
-    if isinstance(v, list):
-        return "a list"
-    if isinstance(v, str):
-        return "a string"
-    if isinstance(v, (int, float)):
-        return "a number"
-    return f"a {type(v).__name__}"
-
-
 def _show(v: Any) -> str:
     return short_text(v)
-
-
-def _number(v: Any, path: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise _Problem(path, f"expected a number, got {_tname(v)} {_show(v)}")
-    try:
-        f = float(v)
-    except OverflowError:
-        raise _Problem(path, f"{_show(v)} is too large") from None
-    if not math.isfinite(f):
-        raise _Problem(path, f"expected a finite number, got {f!r}")
-    return f
-
-
-def _check_table_keys(table: Mapping[str, Any], allowed: tuple[str, ...], path: str) -> None:
-    for k in table:
-        if k in allowed:
-            continue
-        long = len(str(k)) > 64  # no suggestion, and cut when shown
-        close = [] if long else difflib.get_close_matches(str(k), allowed, n=1, cutoff=0.6)
-        hint = f" (did you mean {close[0]!r}?)" if close else ""
-        shown = short_text(str(k)) if long else str(k)
-        where = f"{path}.{shown}" if path else shown
-        raise _Problem(where, f"unknown key{hint}; allowed keys here: {', '.join(allowed)}")
 
 
 def _values(v: Any, path: str, what: str = "values") -> tuple[float, ...]:
     """An explicit list of numbers or a ``{start, stop, num}`` range (linspace)."""
     if isinstance(v, list):
         if not v:
-            raise _Problem(path, "empty list: give at least one value")
-        vals = tuple(_number(x, f"{path}[{j + 1}]") for j, x in enumerate(v))
+            raise KeyPathError(path, "empty list: give at least one value")
+        vals = tuple(file_number(x, f"{path}[{j + 1}]") for j, x in enumerate(v))
     elif isinstance(v, dict):
-        _check_table_keys(v, _RANGE_KEYS, path)
+        check_table_keys(v, _RANGE_KEYS, path)
         for k in _RANGE_KEYS:
             if k not in v:
-                raise _Problem(f"{path}.{k}", "missing (a range is {start = a, stop = b, num = n})")
-        a = _number(v["start"], f"{path}.start")
-        b = _number(v["stop"], f"{path}.stop")
+                raise KeyPathError(f"{path}.{k}", "missing (a range is {start = a, stop = b, num = n})")
+        a = file_number(v["start"], f"{path}.start")
+        b = file_number(v["stop"], f"{path}.stop")
         num = v["num"]
         if isinstance(num, bool) or not isinstance(num, int):
-            raise _Problem(f"{path}.num", f"expected an integer, got {_tname(num)} {_show(num)}")
+            raise KeyPathError(f"{path}.num", f"expected an integer, got {type_name(num)} {_show(num)}")
         if num < 1:
-            raise _Problem(f"{path}.num", f"must be >= 1, got {num}")
+            raise KeyPathError(f"{path}.num", f"must be >= 1, got {num}")
         if num == 1 and a != b:
-            raise _Problem(f"{path}.num", "num = 1 with start != stop is ambiguous: give num >= 2 or a list")
+            raise KeyPathError(f"{path}.num", "num = 1 with start != stop is ambiguous: give num >= 2 or a list")
         if num > MAX_TASKS:
-            raise _Problem(f"{path}.num", f"too many values ({num})")
+            raise KeyPathError(f"{path}.num", f"too many values ({num})")
         if num > 1 and a == b:
-            raise _Problem(path, f"start == stop ({a:g}) with num = {num} gives {num} equal values")
+            raise KeyPathError(path, f"start == stop ({a:g}) with num = {num} gives {num} equal values")
         vals = tuple(float(x) for x in np.linspace(a, b, num))
     else:
-        raise _Problem(path, f"expected a list of {what} or a range {{start, stop, num}}, got {_tname(v)} {_show(v)}")
+        raise KeyPathError(path, f"expected a list of {what} or a range {{start, stop, num}}, got {type_name(v)} {_show(v)}")
     seen: set[float] = set()
     for x in vals:
         if x in seen:
-            raise _Problem(path, f"duplicate value {x:g}")
+            raise KeyPathError(path, f"duplicate value {x:g}")
         seen.add(x)
     return vals
 
@@ -239,19 +195,19 @@ def _read_mechanism(value: Any, base_dir: Path) -> tuple[str, dict[str, Any], An
     from ..mechanism import load_mechanism
 
     if not isinstance(value, str):
-        raise _Problem("mechanism", f"expected a file name (string), got {_tname(value)} {_show(value)}")
+        raise KeyPathError("mechanism", f"expected a file name (string), got {type_name(value)} {_show(value)}")
     if not value:
-        raise _Problem("mechanism", "empty file name")
+        raise KeyPathError("mechanism", "empty file name")
     path = Path(value)
     if not path.is_absolute():
         path = base_dir / path
     path = Path(os.path.normpath(path))
     if not path.exists():
-        raise _Problem("mechanism", f"file not found: {path}")
+        raise KeyPathError("mechanism", f"file not found: {path}")
     try:
         mech = load_mechanism(path)
     except MechanismError as e:
-        raise _Problem("mechanism", f"invalid base mechanism: {e}") from None
+        raise KeyPathError("mechanism", f"invalid base mechanism: {e}") from None
     with open(path, "rb") as fh:
         data = tomllib.loads(fh.read().decode("utf-8-sig"))
     return str(path), data, mech
@@ -262,46 +218,46 @@ def _workspace(value: Any) -> dict[str, Any]:
     if value is None:
         return out
     if not isinstance(value, dict):
-        raise _Problem("workspace", f"expected a table, got {_tname(value)} {_show(value)}")
-    _check_table_keys(value, tuple(WORKSPACE_DEFAULTS), "workspace")
+        raise KeyPathError("workspace", f"expected a table, got {type_name(value)} {_show(value)}")
+    check_table_keys(value, tuple(WORKSPACE_DEFAULTS), "workspace")
     if "step" in value:
-        s = _number(value["step"], "workspace.step")
+        s = file_number(value["step"], "workspace.step")
         if s <= 0:
-            raise _Problem("workspace.step", f"must be > 0 (m), got {s!r}")
+            raise KeyPathError("workspace.step", f"must be > 0 (m), got {s!r}")
         out["step"] = s
     if "bounds" in value:
         b = value["bounds"]
         if not isinstance(b, list) or len(b) != 4:
-            raise _Problem("workspace.bounds", f"expected [x0, x1, y0, y1] (m), got {_show(b)}")
-        bb = [_number(x, f"workspace.bounds[{j + 1}]") for j, x in enumerate(b)]
+            raise KeyPathError("workspace.bounds", f"expected [x0, x1, y0, y1] (m), got {_show(b)}")
+        bb = [file_number(x, f"workspace.bounds[{j + 1}]") for j, x in enumerate(b)]
         if not (bb[0] < bb[1] and bb[2] < bb[3]):
-            raise _Problem("workspace.bounds", f"need x0 < x1 and y0 < y1, got {_show(b)}")
+            raise KeyPathError("workspace.bounds", f"need x0 < x1 and y0 < y1, got {_show(b)}")
         out["bounds"] = bb
     if "seed" in value:
         sd = value["seed"]
         if not isinstance(sd, list) or len(sd) != 2:
-            raise _Problem("workspace.seed", f"expected [x, y] (m), got {_show(sd)}")
-        out["seed"] = [_number(x, f"workspace.seed[{j + 1}]") for j, x in enumerate(sd)]
+            raise KeyPathError("workspace.seed", f"expected [x, y] (m), got {_show(sd)}")
+        out["seed"] = [file_number(x, f"workspace.seed[{j + 1}]") for j, x in enumerate(sd)]
     if "max_mode" in value:
         q = value["max_mode"]
         if isinstance(q, bool) or not isinstance(q, int) or not 1 <= q <= 6:
-            raise _Problem("workspace.max_mode", f"expected an integer from 1 to 6, got {_show(q)}")
+            raise KeyPathError("workspace.max_mode", f"expected an integer from 1 to 6, got {_show(q)}")
         out["max_mode"] = q
     for key in ("all_aspects", "constrained", "collisions", "seed_search"):
         if key in value:
             flag = value[key]
             if not isinstance(flag, bool):
-                raise _Problem(f"workspace.{key}", f"expected true or false, got {_show(flag)}")
+                raise KeyPathError(f"workspace.{key}", f"expected true or false, got {_show(flag)}")
             out[key] = flag
     if "time_budget" in value:
-        t = _number(value["time_budget"], "workspace.time_budget")
+        t = file_number(value["time_budget"], "workspace.time_budget")
         if t <= 0:
-            raise _Problem("workspace.time_budget", f"must be > 0 (s), got {t!r}")
+            raise KeyPathError("workspace.time_budget", f"must be > 0 (s), got {t!r}")
         out["time_budget"] = t
     if out["bounds"] is not None and out["seed"] is not None:
         b, s = out["bounds"], out["seed"]
         if not (b[0] <= s[0] <= b[1] and b[2] <= s[1] <= b[3]):
-            raise _Problem("workspace.seed", f"({s[0]:g}, {s[1]:g}) lies outside the bounds {b}")
+            raise KeyPathError("workspace.seed", f"({s[0]:g}, {s[1]:g}) lies outside the bounds {b}")
     return out
 
 
@@ -313,7 +269,7 @@ def _check_grid(mech: Any, ws: dict[str, Any]) -> None:
     try:
         default_grid(mech, ws["step"], ws["bounds"])
     except ValueError as e:
-        raise _Problem("workspace.step" if ws["step"] is not None else "workspace.bounds",
+        raise KeyPathError("workspace.step" if ws["step"] is not None else "workspace.bounds",
                        f"{e} (for the base design)") from None
 
 
@@ -321,17 +277,17 @@ def _metrics(value: Any) -> tuple[str, ...]:
     if value is None:
         return tuple(METRICS)
     if not isinstance(value, list) or not value:
-        raise _Problem("metrics", f"expected a non-empty list of metric names, got {_show(value)}")
+        raise KeyPathError("metrics", f"expected a non-empty list of metric names, got {_show(value)}")
     out: list[str] = []
     for j, m in enumerate(value):
         if not isinstance(m, str):
-            raise _Problem(f"metrics[{j + 1}]", f"expected a metric name, got {_tname(m)} {_show(m)}")
+            raise KeyPathError(f"metrics[{j + 1}]", f"expected a metric name, got {type_name(m)} {_show(m)}")
         if m not in METRICS:
-            close = difflib.get_close_matches(m, list(METRICS), n=1, cutoff=0.6)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise _Problem(f"metrics[{j + 1}]", f"unknown metric {m!r}{hint}; metrics: {', '.join(METRICS)}")
+            close = suggest_key(m, list(METRICS))
+            hint = f" (did you mean {close!r}?)" if close else ""
+            raise KeyPathError(f"metrics[{j + 1}]", f"unknown metric {m!r}{hint}; metrics: {', '.join(METRICS)}")
         if m in out:
-            raise _Problem(f"metrics[{j + 1}]", f"duplicate metric {m!r}")
+            raise KeyPathError(f"metrics[{j + 1}]", f"duplicate metric {m!r}")
         out.append(m)
     return tuple(m for m in METRICS if m in out)  # the table's column order
 
@@ -344,11 +300,11 @@ def _quoted(key: str) -> str:
 
 def _grid_axes(value: Any, base: dict[str, Any], mech: Any) -> tuple[GridAxis, ...]:
     if value is None:
-        raise _Problem("grid", "missing: a [grid] table with at least one parameter, e.g. \"rod.length\" = [0.9, 1.0]")
+        raise KeyPathError("grid", "missing: a [grid] table with at least one parameter, e.g. \"rod.length\" = [0.9, 1.0]")
     if not isinstance(value, dict):
-        raise _Problem("grid", f"expected a table, got {_tname(value)} {_show(value)}")
+        raise KeyPathError("grid", f"expected a table, got {type_name(value)} {_show(value)}")
     if not value:
-        raise _Problem("grid", "empty: give at least one parameter, e.g. \"rod.length\" = [0.9, 1.0]")
+        raise KeyPathError("grid", "empty: give at least one parameter, e.g. \"rod.length\" = [0.9, 1.0]")
     n = len(mech.legs)
     axes, pks = [], []
     for key, v in value.items():
@@ -356,23 +312,23 @@ def _grid_axes(value: Any, base: dict[str, Any], mech: Any) -> tuple[GridAxis, .
         if isinstance(v, dict) and not set(v) & set(_RANGE_KEYS) and v:
             # TOML turns an unquoted dotted key (rod.length = ...) into nested tables
             sub = next(iter(v))
-            raise _Problem(path, f"write the key in quotes: \"{key}.{sub}\" = ... (a dotted key must be quoted)")
+            raise KeyPathError(path, f"write the key in quotes: \"{key}.{sub}\" = ... (a dotted key must be quoted)")
         try:
             pk = _grid.parse_key(key, n)
         except _grid.GridKeyError as e:
-            raise _Problem(path, str(e)) from None
+            raise KeyPathError(path, str(e)) from None
         vals = _values(v, path)
         for j, x in enumerate(vals):
             try:
                 _grid.check_value(pk, x)
             except _grid.GridKeyError as e:
-                raise _Problem(f"{path}[{j + 1}]" if isinstance(v, list) else path, str(e)) from None
+                raise KeyPathError(f"{path}[{j + 1}]" if isinstance(v, list) else path, str(e)) from None
         axes.append(GridAxis(key, vals))
         pks.append(pk)
     try:
         _grid.check_keys(pks, base, mech)
     except _grid.GridKeyError as e:
-        raise _Problem(f"grid.{_quoted(e.key)}" if e.key else "grid", str(e)) from None
+        raise KeyPathError(f"grid.{_quoted(e.key)}" if e.key else "grid", str(e)) from None
     return tuple(axes)
 
 
@@ -398,16 +354,16 @@ def study_from_dict(data: Mapping[str, Any], source: str = "<dict>", base_dir: s
         base_dir = Path(source).resolve().parent if not source.startswith("<") else Path.cwd()
     try:
         if not isinstance(data, Mapping):
-            raise _Problem("", f"expected a table, got {_tname(data)}")
-        _check_table_keys(data, _TOP_KEYS, "")
+            raise KeyPathError("", f"expected a table, got {type_name(data)}")
+        check_table_keys(data, _TOP_KEYS, "")
         if "mechanism" not in data:
-            raise _Problem("mechanism", "missing: the base mechanism file, e.g. mechanism = \"unit_3rfr.toml\"")
+            raise KeyPathError("mechanism", "missing: the base mechanism file, e.g. mechanism = \"unit_3rfr.toml\"")
         mpath, mdata, mech = _read_mechanism(data["mechanism"], Path(base_dir))
         name = data.get("name", Path(source).stem if not source.startswith("<") else "study")
         if not isinstance(name, str):
-            raise _Problem("name", f"expected a string, got {_tname(name)} {_show(name)}")
+            raise KeyPathError("name", f"expected a string, got {type_name(name)} {_show(name)}")
         if "orientations" not in data:
-            raise _Problem("orientations", "missing: the platform orientations to map (deg), e.g. [0, 20]")
+            raise KeyPathError("orientations", "missing: the platform orientations to map (deg), e.g. [0, 20]")
         orient = _values(data["orientations"], "orientations", "angles (deg)")
         axes = _grid_axes(data.get("grid"), mdata, mech)
         metrics = _metrics(data.get("metrics"))
@@ -416,8 +372,8 @@ def study_from_dict(data: Mapping[str, Any], source: str = "<dict>", base_dir: s
         spec = StudySpec(name=name, source=source, mechanism_path=mpath, mechanism=mdata, grid=axes,
                          orientations=orient, metrics=metrics, workspace=ws)
         if spec.n_tasks > MAX_TASKS:
-            raise _Problem("grid", f"{spec.n_tasks} rows is too many (at most {MAX_TASKS})")
-    except _Problem as e:
+            raise KeyPathError("grid", f"{spec.n_tasks} rows is too many (at most {MAX_TASKS})")
+    except KeyPathError as e:
         raise StudyError(f"{source}: {e}") from None
     return spec
 
