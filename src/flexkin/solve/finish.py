@@ -21,8 +21,9 @@ from ..analysis.verify import verify_solutions
 from ..core.geometry2d import wrap_to_pi
 from ..results import Solution
 from ..rod.atlas import in_scope
-from ..rod.closed_form import mode_of, standard_chart
-from ..rod.kernels import CHART_WRENCH, TH
+from ..rod.closed_form import SEAM_OFFSET, is_seam, mode_of, standard_chart
+from ..rod.kernels import CHART_SEAM, CHART_WRENCH, PHI, TH
+from ..rod.seam_atlas import seam_in_scope
 from ..rod.slots import X as X_, Y as Y_
 from ..rod.wrench import wrench_mode
 from ..rod.wrench_atlas import in_wrench_scope
@@ -41,6 +42,14 @@ def canonical(system: System, X: NDArray) -> NDArray[np.float64]:
     X[:, lay.inputs] = u
     X[:, lay.pose.start + 2] = wrap_to_pi(X[:, lay.pose.start + 2])
     return X
+
+
+def pinned_chart(z: NDArray, charts: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The solvers' chart ``(v, phis)`` of pinned rods with coordinates ``z`` (n, 2) in ``charts``
+    (n,): unified pairs as they are, seam pairs converted (stored raw, as the solvers iterate on
+    them, or offset-encoded, :func:`~flexkin.rod.closed_form.standard_chart`)."""
+    z1 = np.where((charts == CHART_SEAM) & ~is_seam(z[:, 1]), z[:, 1] + SEAM_OFFSET, z[:, 1])
+    return standard_chart(z[:, 0], z1)
 
 
 #: a rod whose base moment (or, for a clamped tip, tip moment) is below this, relative to its
@@ -64,7 +73,7 @@ def rod_modes(system: System, X: NDArray, charts: NDArray, with_boundary: bool =
         z = X[:, system.layout.rod[i]]
         pinned = charts[:, i] != CHART_WRENCH
         if np.any(pinned):
-            v, ph = standard_chart(z[pinned, 0], z[pinned, 1])
+            v, ph = pinned_chart(z[pinned], charts[pinned, i])
             # phis at a base inflection is -pi/2 - j pi: snap to it within the resolution, so
             # that the label is a property of the configuration (the lower one), not of rounding
             j = np.round((-0.5 * np.pi - ph) / np.pi)
@@ -78,18 +87,21 @@ def rod_modes(system: System, X: NDArray, charts: NDArray, with_boundary: bool =
 
 def _in_scope(system: System, X: NDArray, charts: NDArray, modes: NDArray, max_mode: int) -> NDArray[np.bool_]:
     """Solutions whose rods are all in the searched set: pinned rods with ``k' >= KPRIME_MIN / 2``
-    (:mod:`flexkin.rod.atlas`), clamped rods within the wrench atlas' scope
-    (:func:`~flexkin.rod.wrench_atlas.in_wrench_scope`)."""
+    (:mod:`flexkin.rod.atlas`), or in the seam chart with ``lambda L <= LAMBDA_SCOPE``
+    (:mod:`flexkin.rod.seam_atlas`: rods near straight under tension, ``k'`` -> 0 at any tension),
+    clamped rods within the wrench atlas' scope (:func:`~flexkin.rod.wrench_atlas.in_wrench_scope`)."""
     ok = np.ones(len(X), bool)
     if len(X) == 0:
         return ok
     q, _ = system.unit_rods(X, charts)
     for i in range(3):
         z = X[:, system.layout.rod[i]]
-        pinned = charts[:, i] != CHART_WRENCH
+        seam = charts[:, i] == CHART_SEAM
+        pinned = (charts[:, i] != CHART_WRENCH) & ~seam
         if np.any(pinned):
-            v, _ = standard_chart(z[pinned, 0], z[pinned, 1])
-            ok[pinned] &= in_scope(v[:, None])
+            ok[pinned] &= in_scope(z[pinned, :1])
+        if np.any(seam):
+            ok[seam] &= seam_in_scope(q[seam, i, PHI])
         if np.any(~pinned):
             ok[~pinned] &= in_wrench_scope(z[~pinned], q[~pinned, i, TH], modes[~pinned, i], max_mode)
     return ok

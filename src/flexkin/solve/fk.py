@@ -75,14 +75,15 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
                                 max_mode)
     if np.any(system.clamped):  # 9-D interval bounds exclude too little: the pose lattice
         X, complete, stats = lattice_starts(system, u, w, max_mode, deadline=deadline)
+        charts = system.default_charts(len(X))
         nodes = stats.combinations
         diag["lattice_h"], diag["lattice_n_theta"] = stats.h, stats.n_theta
     else:
-        X, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=deadline)
+        X, charts, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=deadline)
     diag["candidates"] = int(len(X))
     diag["search_complete"] = complete
     diag["nodes"] = int(nodes)
-    sols = refine_fk(system, mech, X, system.default_charts(len(X)), w, max_mode, diag)
+    sols = refine_fk(system, mech, X, charts, w, max_mode, diag)
     msg = "" if sols else "no equilibrium pose found for these inputs and load"
     if diag.get("continuum"):
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
