@@ -25,13 +25,16 @@ from numpy.typing import NDArray
 from ..core.cache import cached_arrays
 from .atlas import get_atlas
 from .closed_form import SEAM_OFFSET, is_seam
-from .seam_atlas import PSI_IN, PSI_OUT, T_MAX, get_seam_atlas, unified_corner
+from .seam_atlas import T_MAX, get_seam_atlas
 from .slots import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, NQ
 
 __all__ = ["CellTree", "pinned_tree", "clamped_tree"]
 
 #: relative padding of a leaf's bounds
 PAD = 0.1
+#: the pinned tree takes the seam patch's blocks that meet |psi_s| < SEAM_TREE_PSI (about 1.5
+#: cells of the atlas next to its corner), the atlas' blocks for the rest
+SEAM_TREE_PSI = 0.05
 
 
 @dataclass(frozen=True)
@@ -152,9 +155,9 @@ def _pad(lo: NDArray, hi: NDArray) -> tuple[NDArray, NDArray]:
 
 
 def _blocks2(feats: NDArray, z0: NDArray, z1: NDArray, stride: int, skip: NDArray | None = None):
-    """Block bounds, chart centres/extents and ``keep`` flags (blocks not wholly ``skip``ped) of a
-    2-D grid of rods ``feats`` (n0, n1, 6) with chart coordinates ``z0`` (n0,), ``z1`` (n1,), in
-    blocks of ``stride`` x ``stride`` cells."""
+    """Block bounds, chart centres/extents and ``keep`` flags (blocks not wholly ``skip``ped; a
+    node of the block kept is enough) of a 2-D grid of rods ``feats`` (n0, n1, 6) with chart
+    coordinates ``z0`` (n0,), ``z1`` (n1,), in blocks of ``stride`` x ``stride`` cells."""
     n0, n1 = feats.shape[:2]
     ii = np.arange(0, n0 - 1, stride)
     jj = np.arange(0, n1 - 1, stride)
@@ -179,17 +182,20 @@ def _blocks2(feats: NDArray, z0: NDArray, z1: NDArray, stride: int, skip: NDArra
 @lru_cache(maxsize=4)
 def pinned_tree(max_mode: int, stride: int = 4) -> CellTree:
     """Tree over the pinned rods with leaves of ``stride`` x ``stride`` cells: the atlas (chart
-    ``(v, phis)``) without the corner of rods near straight under tension, and the seam patch
-    (:mod:`flexkin.rod.seam_atlas`) that covers it.  The seam nodes' centres are stored
+    ``(v, phis)``) and, for the rods near straight under tension it has no nodes for, the seam
+    patch (:mod:`flexkin.rod.seam_atlas`) near the taut line (:data:`SEAM_TREE_PSI`).  The seam nodes' centres are stored
     offset-encoded, ``(psi_s, chi + SEAM_OFFSET)`` (:func:`~flexkin.rod.closed_form.is_seam`), so
     that one array holds both charts; their rods ``q``, ``g`` are in the seam chart."""
     def build():
         A = get_atlas(max_mode)
         feats = np.stack([A.x, A.y, A.R * np.cos(A.psi), A.R * np.sin(A.psi), A.theta, np.zeros_like(A.x)], -1)
-        t_uni = _build(*_blocks2(feats, A.v, A.phis, stride, unified_corner(A)))
+        t_uni = _build(*_blocks2(feats, A.v, A.phis, stride))
         S = get_seam_atlas()
         feats = np.stack([S.x, S.y, S.fx, S.fy, S.theta, np.zeros_like(S.x)], -1)
-        t_seam = _build(*_blocks2(feats, S.psi_s, S.chi + SEAM_OFFSET, stride))
+        # only the blocks that meet |psi_s| < SEAM_TREE_PSI: the atlas' leaf boxes bound its rods
+        # down to there, not to the taut line (its nodes stop at phis = pi/2 - 1e-3, k' = 1e-6)
+        outside = np.broadcast_to((np.abs(S.psi_s) >= SEAM_TREE_PSI)[:, None], S.x.shape)
+        t_seam = _build(*_blocks2(feats, S.psi_s, S.chi + SEAM_OFFSET, stride, outside))
         return _merge(t_uni, t_seam)
 
     def build_all():
@@ -205,7 +211,7 @@ def pinned_tree(max_mode: int, stride: int = 4) -> CellTree:
         t.update(q=q, g=g)
         return t
 
-    t = cached_arrays("pinned-tree", (max_mode, stride, PAD, "q", "seam", PSI_IN, PSI_OUT, T_MAX), build_all)
+    t = cached_arrays("pinned-tree", (max_mode, stride, PAD, "q", "seam", SEAM_TREE_PSI, T_MAX), build_all)
     return CellTree(CHART_UNIFIED, t["lo"], t["hi"], t["child"], t["zc"], t["zh"], t["q"], t["g"])
 
 
