@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.cache import cached_arrays
-from .atlas import get_atlas
+from .atlas import MODE_MARGIN, get_atlas
 from .closed_form import SEAM_OFFSET, is_seam
 from .seam_atlas import T_MAX, get_seam_atlas
 from .slots import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, NQ
@@ -211,7 +211,7 @@ def pinned_tree(max_mode: int, stride: int = 4) -> CellTree:
         t.update(q=q, g=g)
         return t
 
-    t = cached_arrays("pinned-tree", (max_mode, stride, PAD, "q", "seam", SEAM_TREE_PSI, T_MAX), build_all)
+    t = cached_arrays("pinned-tree", (max_mode, stride, PAD, "q", "seam", SEAM_TREE_PSI, T_MAX, "margin", MODE_MARGIN), build_all)
     return CellTree(CHART_UNIFIED, t["lo"], t["hi"], t["child"], t["zc"], t["zh"], t["q"], t["g"])
 
 

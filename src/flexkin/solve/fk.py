@@ -22,7 +22,7 @@ from ..core.validation import as_triple, check_budget, check_max_mode
 from ..results import FKDiagnostics, KinematicsResult, Solution
 from ..system import System
 from .corrector import newton
-from .finish import finish_solutions
+from .finish import SCOPE_MESSAGE, finish_solutions
 from .fk_lattice import lattice_starts
 from .fk_search import MAX_NODES, fk_starts
 from .ik import RESIDUAL_TOL, as_load
@@ -88,7 +88,10 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     if diag.get("continuum"):
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
                "the least loaded one is reported")
-    if not complete:
+    if diag.get("out_of_scope_taut"):
+        complete = False
+        msg = SCOPE_MESSAGE
+    if not diag["search_complete"]:
         why = ("time budget exhausted" if time_budget is not None and (nodes < MAX_NODES or "lattice_h" in diag)
                else f"search budget exhausted ({nodes} node triples examined)")
         msg = f"{why}: the global search did not finish, the solution list may be incomplete" + \

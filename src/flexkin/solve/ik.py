@@ -25,7 +25,7 @@ from ..system import System
 from .corrector import newton
 from .curves import leg_curves
 from .equilibrium import equilibrium_triples
-from .finish import finish_solutions
+from .finish import SCOPE_MESSAGE, finish_solutions
 
 __all__ = ["ik", "refine_ik", "RESIDUAL_TOL", "as_load"]
 
@@ -117,7 +117,10 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     if diag.get("continuum"):
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
                "the least loaded one is reported")
-    if not complete:
+    if diag.get("out_of_scope_taut"):
+        complete = False
+        msg = SCOPE_MESSAGE
+    if not diag["search_complete"]:
         msg = "search stopped early (time or node budget): the solution list may be incomplete"
     res = KinematicsResult(tuple(sols), complete, msg, time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech,
                            tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves)
