@@ -245,3 +245,13 @@ def test_oracle_at_the_mixed_boundary_case(boundary_case):
     assert oracle
     assert all(any(O.match(f, o.forces, F_ref) for f in flex) for o in oracle)
     assert any(same_inputs(o.inputs, u, 1e-6) for o in oracle)
+
+
+@pytest.mark.slow
+def test_fk_finds_the_prototype_orbit_at_max_mode_3(proto_90):
+    """FK at the inputs of the orbit's 113 member, searching up to d-mode 3, returns (0, 0, 90 deg)."""
+    _, r3 = proto_90
+    sol = next(s for s in r3.solutions if same_inputs(s.inputs, ORBIT, 1e-3))
+    res = flexkin.fk(PROTO, sol.inputs, max_mode=3)
+    assert any(np.max(np.abs(np.array(s.pose) - np.array(sol.pose))) < 1e-8 and s.modes == sol.modes
+               for s in res.solutions)
