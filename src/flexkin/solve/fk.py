@@ -58,6 +58,8 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     -------
     KinematicsResult
         ``problem == "fk"``; ``solutions`` possibly empty, then ``message`` explains.
+        ``complete`` is ``False`` when the search stopped early, or when it reached equilibria
+        with a rod near straight under tension beyond the numerical scope (not reported).
     """
     t0 = time.perf_counter()
     max_mode = check_max_mode(max_mode)

@@ -62,7 +62,9 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     -------
     KinematicsResult
         ``problem == "ik"``; ``solutions`` (possibly empty, then ``message`` explains),
-        ``curves`` holds the geometric-condition curves of step 1.
+        ``curves`` holds the geometric-condition curves of step 1.  ``complete`` is ``False``
+        when the search stopped early, or when it reached equilibria with a rod near straight
+        under tension beyond the numerical scope (not reported; ``message`` says so).
     """
     t0 = time.perf_counter()
     max_mode = check_max_mode(max_mode)
