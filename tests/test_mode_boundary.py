@@ -255,3 +255,18 @@ def test_fk_finds_the_prototype_orbit_at_max_mode_3(proto_90):
     res = flexkin.fk(PROTO, sol.inputs, max_mode=3)
     assert any(np.max(np.abs(np.array(s.pose) - np.array(sol.pose))) < 1e-8 and s.modes == sol.modes
                for s in res.solutions)
+
+
+@pytest.mark.slow
+def test_oracle_labels_the_prototype_orbit_113(proto_90):
+    """The independent oracle at max_mode 3 (its full budget, ~2 min) finds the orbit and labels
+    it 113/131/311, and flexkin's max_mode-3 list holds every solution it finds."""
+    _, r3 = proto_90
+    oracle = O.oracle_ik(PROTO, (0.0, 0.0, math.radians(90.0)), load=(0.0, 0.0, 0.0), max_mode=3, n_starts=3000,
+                         scan=(300, 600), max_triples=12000, s_max=6.0, seed=7)
+    orbit = [o for o in oracle if any(same_inputs(np.roll(o.inputs, k), ORBIT, 1e-3) for k in range(3))]
+    assert sorted(o.modes for o in orbit) == [(1, 1, 3), (1, 3, 1), (3, 1, 1)]
+    F_ref = O.Geom.of(PROTO).F_ref
+    flex = [[r.tip_force for r in s.rods] for s in r3.solutions]
+    missed = [o.mode_label for o in oracle if not o.extreme and not any(O.match(f, o.forces, F_ref) for f in flex)]
+    assert not missed
