@@ -183,9 +183,10 @@ def _blocks2(feats: NDArray, z0: NDArray, z1: NDArray, stride: int, skip: NDArra
 def pinned_tree(max_mode: int, stride: int = 4) -> CellTree:
     """Tree over the pinned rods with leaves of ``stride`` x ``stride`` cells: the atlas (chart
     ``(v, phis)``) and, for the rods near straight under tension it has no nodes for, the seam
-    patch (:mod:`flexkin.rod.seam_atlas`) near the taut line (:data:`SEAM_TREE_PSI`).  The seam nodes' centres are stored
-    offset-encoded, ``(psi_s, chi + SEAM_OFFSET)`` (:func:`~flexkin.rod.closed_form.is_seam`), so
-    that one array holds both charts; their rods ``q``, ``g`` are in the seam chart."""
+    patch (:mod:`flexkin.rod.seam_atlas`) near the taut line (:data:`SEAM_TREE_PSI`).  The seam
+    nodes' centres are stored offset-encoded, ``(psi_s, chi + SEAM_OFFSET)``
+    (:func:`~flexkin.rod.closed_form.is_seam`), so that one array holds both charts; their rods
+    ``q``, ``g`` are in the seam chart."""
     def build():
         A = get_atlas(max_mode)
         feats = np.stack([A.x, A.y, A.R * np.cos(A.psi), A.R * np.sin(A.psi), A.theta, np.zeros_like(A.x)], -1)
@@ -211,7 +212,8 @@ def pinned_tree(max_mode: int, stride: int = 4) -> CellTree:
         t.update(q=q, g=g)
         return t
 
-    t = cached_arrays("pinned-tree", (max_mode, stride, PAD, "q", "seam", SEAM_TREE_PSI, T_MAX, "margin", MODE_MARGIN), build_all)
+    key = (max_mode, stride, PAD, "q", "seam", SEAM_TREE_PSI, T_MAX, "margin", MODE_MARGIN)
+    t = cached_arrays("pinned-tree", key, build_all)
     return CellTree(CHART_UNIFIED, t["lo"], t["hi"], t["child"], t["zc"], t["zh"], t["q"], t["g"])
 
 

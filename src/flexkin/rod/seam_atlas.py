@@ -67,7 +67,8 @@ def _psi_nodes(n_half: int = 25) -> NDArray[np.float64]:
 def _chi_nodes() -> NDArray[np.float64]:
     """``chi`` nodes, uniform in ``t = atanh(sin chi)`` (the tension on the taut line) with a
     geometric refinement towards the unloaded rod ``t -> 0``."""
-    t = np.concatenate([np.geomspace(1e-3, 0.4, 12)[:-1], np.linspace(0.4, T_MAX, int(np.ceil((T_MAX - 0.4) / 0.2)) + 1)])
+    n = int(np.ceil((T_MAX - 0.4) / 0.2)) + 1
+    t = np.concatenate([np.geomspace(1e-3, 0.4, 12)[:-1], np.linspace(0.4, T_MAX, n)])
     return np.arcsin(np.tanh(t))
 
 
