@@ -184,6 +184,8 @@ def test_both_sides_of_a_d_mode_boundary(boundary_case, delta):
     does not, and ``max_mode = 3`` lists it; flexkin's label of the rod agrees with the zeros of
     the moment located by the ODE on both sides."""
     mech, load, a, b, tc, x, c, sy = boundary_case
+    if mech is PROTO and delta > 1e-5:
+        pytest.skip("one offset for the prototype in the default run (its IK to d-mode 3 takes seconds)")
     sides = {}
     for t in (tc - delta, tc + delta):
         X, C, ok = continue_ik(sy, x[None], c[None], (a + t * (b - a))[None], np.asarray(load, float))
