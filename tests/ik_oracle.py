@@ -434,12 +434,18 @@ def integrate_batch(ax, ay, mt, th0, n_eval=2, rtol=1e-13, atol=1e-13):
 
 
 def count_inflections(ms, rel_tol=1e-9) -> int:
-    """1 + number of sign changes of the moment strictly inside the rod (samples incl. ends)."""
+    """1 + number of sign changes of the moment strictly inside the rod (samples incl. ends).
+
+    The clamp sample takes part when it is not a zero (``> rel_tol * max|m|``): a base moment
+    whose sign differs from the first interior sample's puts a zero strictly inside, however
+    close to the clamp (next to a d-mode boundary the first inflection can lie before the first
+    interior sample); a vanishing base moment (an inflection at the clamp) does not count.  The
+    tip sample never does (the pinned tip always counts, the 1)."""
     ms = np.asarray(ms, float)
     scale = float(np.max(np.abs(ms)))
     if scale == 0.0:
         return 1
-    m = ms[1:-1]
+    m = ms[:-1]
     sg = np.sign(m[np.abs(m) > rel_tol * scale])
     return 1 + int(np.count_nonzero(sg[1:] != sg[:-1]))
 

@@ -138,11 +138,13 @@ def count_inflections(moments, rel_tol: float = 1e-9) -> int:
     """d-mode of a sampled rod: 1 + number of sign changes of the moment strictly inside.
 
     ``moments`` are samples along the whole rod, ``moments[0]`` at the clamp and
-    ``moments[-1]`` at the tip; both end samples are ignored (a zero base moment is not an
-    interior inflection, the tip always counts).  Interior samples smaller than
-    ``rel_tol * max|m|`` are treated as zeros and skipped.
+    ``moments[-1]`` at the tip.  The tip sample is ignored (the tip always counts); the clamp
+    sample takes part unless it is a zero (a zero base moment is not an interior inflection,
+    but a base moment of the other sign than the first interior sample puts an inflection
+    strictly inside, however close to the clamp).  Samples smaller than ``rel_tol * max|m|``
+    are treated as zeros and skipped.
     """
-    m = np.asarray(moments, dtype=float)[1:-1]
+    m = np.asarray(moments, dtype=float)[:-1]
     scale = float(np.max(np.abs(moments))) if len(moments) else 0.0
     if scale == 0.0:
         return 1

@@ -21,6 +21,7 @@ from scipy.linalg import null_space
 from flexkin.analysis.stability import _project
 from flexkin.mechanism.actuators import COND_CIRCLE, COND_LINE
 from flexkin.rod.closed_form import tip_chart
+from flexkin.rod.kernels import CHART_UNIFIED
 from flexkin.solve.curves import _snap
 from flexkin.solve.equilibrium import equilibrium_triples
 
@@ -88,7 +89,14 @@ def test_snap_lands_on_the_level_set(code, par):
     rng = np.random.default_rng(5)
     z = np.stack([rng.uniform(-2.0, 2.0, 200), rng.uniform(-3.5, 1.2, 200)], -1)
     d = rng.normal(size=(200, 2))
-    out, tips = _snap(code, np.array([*par, 0.0]), z, d, iters=30, max_shift=1.0)
+    if code == COND_LINE:
+        out, tips = _snap(CHART_UNIFIED, code, np.array([*par, 0.0]), 0.0, z, d, iters=30, max_shift=1.0)
+    else:  # the circle's regular form sign(k) sqrt(1 - |tip|) = +-sqrt(1 - r), one level per sign of k
+        out, tips = np.empty_like(z), np.empty((len(z), 4))
+        for sg in (1.0, -1.0):
+            k = np.flatnonzero(np.sign(z[:, 0]) == sg)
+            out[k], tips[k] = _snap(CHART_UNIFIED, code, np.array([*par, 0.0]), sg * np.sqrt(1.0 - par[0]), z[k],
+                                    d[k], iters=30, max_shift=1.0)
     t = tip_chart(out[:, 0], out[:, 1])
     g = t.y - par[0] if code == COND_LINE else np.hypot(t.x, t.y) - par[0]
     moved = np.any(out != z, axis=1)

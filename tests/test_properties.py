@@ -178,9 +178,9 @@ def problems(draw, kinds=("PPP", "RRR", "LLL", "mixed")):
 # ======================================================================================
 def dense_mode(mech, sol, i: int, n_eval: int = 200_001) -> int:
     """d-mode of rod ``i`` of ``sol`` from a dense re-integration, counting sign changes of the
-    moment on [0, L) INCLUDING the first interval (ik_oracle.count_inflections drops the clamp
-    sample, so it misses an inflection closer to the clamp than L/2000; seen on random
-    mechanisms with s/L = 4.5e-4)."""
+    moment on [0, L) INCLUDING the first interval (as ik_oracle.count_inflections does since
+    issue 27; it used to drop the clamp sample and so missed an inflection closer to the clamp
+    than L/2000, seen on random mechanisms with s/L = 4.5e-4)."""
     g = O.Geom.of(mech)
     r = sol.rods[i]
     A, al, L = g.clamp(i, np.asarray(sol.inputs[i], float))
@@ -288,7 +288,9 @@ def test_ik_verified_near_loop_rod():
 
 def test_ik_verified_inflection_near_the_clamp():
     """Example found by the slow run: a 212 solution whose rod 1 has an inflection at s/L = 4.5e-4
-    (finer than the oracle's sampling, see :func:`dense_mode`); flexkin's d-mode 2 is right."""
+    (before the oracle's first interior sample, see :func:`dense_mode`); flexkin's d-mode 2 is
+    right, and so is the oracle's count since it compares the clamp's moment with the first
+    sample (issue 27)."""
     m = Mechanism("random PPP", (
         Leg("prismatic", (-0.8571673007021123, -0.5150380749100542), 0.0, Rod(1.25, 0.5)),
         Leg("prismatic", (0.7950450901466494, -0.4967993102186297), 2.0943951023931953, Rod(1.125, 1.5)),
@@ -299,7 +301,7 @@ def test_ik_verified_inflection_near_the_clamp():
     check_ik_verified((m, pose, (0.0, 0.0, 0.0)))
     s = next(s for s in flexkin.ik(m, pose).solutions
              if s.mode_label == "212" and abs(s.inputs[0] + 0.504268302) < 1e-6)
-    assert O.verify_solution(m, s, (0, 0, 0), pose)["modes"][0] == 1  # the oracle's coarse count
+    assert O.verify_solution(m, s, (0, 0, 0), pose)["modes"][0] == 2  # the oracle's count
     assert dense_mode(m, s, 0) == 2 == s.modes[0]
 
 

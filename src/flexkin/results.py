@@ -215,14 +215,18 @@ class Solution:
 @dataclass(frozen=True)
 class IKDiagnostics:
     """What the inverse kinematics did: curve branches per leg, equilibrium candidates, Newton
-    convergences, whether the global search completed, and the size of a singular continuum
-    (0 when none)."""
+    convergences, whether the global search completed, the size of a singular continuum
+    (0 when none) and the equilibria found beyond the numerical scope and not reported (with a
+    pinned rod beyond it; among them, with a rod near straight under tension beyond it, which
+    makes the result incomplete)."""
 
     branches: tuple[int, ...] = ()
     candidates: int = 0
     converged: int = 0
     search_complete: bool = True
     continuum: int = 0
+    out_of_scope: int = 0
+    out_of_scope_taut: int = 0
 
 
 @dataclass(frozen=True)
@@ -230,8 +234,9 @@ class FKDiagnostics:
     """What the forward kinematics did: starting points from the global search, Newton
     convergences, whether the search completed, node triples (branch-and-bound, all legs
     pinned) or rod combinations (pose lattice, any leg clamped) examined, singular continuum,
-    and the pose lattice's spacing (``lattice_h`` in m and ``lattice_n_theta`` orientations per
-    turn; 0 for the branch-and-bound)."""
+    the pose lattice's spacing (``lattice_h`` in m and ``lattice_n_theta`` orientations per
+    turn; 0 for the branch-and-bound) and the equilibria found beyond the numerical scope and not
+    reported (as in :class:`IKDiagnostics`)."""
 
     candidates: int = 0
     converged: int = 0
@@ -240,6 +245,8 @@ class FKDiagnostics:
     continuum: int = 0
     lattice_h: float = 0.0
     lattice_n_theta: int = 0
+    out_of_scope: int = 0
+    out_of_scope_taut: int = 0
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,9 @@ sets on it and the single-rod inverse problem searches its triangles.
 
 Grid design: ``ku = tanh(v)``, uniform in ``arcsin(ku)`` plus a logarithmic refinement
 in ``k'`` towards ``|ku| -> 1`` (where the tip force grows like ``log(1/k')**2``); ``phis`` uniform from
-``pi/2`` (unloaded straight rod) down to ``-(Q - 1) pi - pi/2`` (end of d-mode Q).
+``pi/2`` (unloaded straight rod) down to ``-(Q - 1) pi - pi/2`` (end of d-mode Q), and a margin of
+:data:`MODE_MARGIN` cells of d-mode Q + 1 beyond it (so that no search cuts its curves or boxes at
+the last d-mode boundary).
 """
 
 from __future__ import annotations
@@ -54,13 +56,27 @@ def in_scope(v: NDArray[np.float64]) -> NDArray[np.bool_]:
     return np.all(np.abs(v) <= np.arccosh(2.0 / KPRIME_MIN), axis=-1)
 
 
+#: cells of d-mode ``max_mode + 1`` the atlas carries beyond the end of d-mode ``max_mode``
+#: (:func:`_phis_nodes`)
+MODE_MARGIN = 2
+
+
 def _phis_nodes(max_mode: int, per_pi: int = 96) -> NDArray[np.float64]:
+    """``phis`` nodes from ``pi/2`` down to the end of d-mode ``max_mode`` and :data:`MODE_MARGIN`
+    cells beyond it.  The margin is there for the searches, not for the solutions (they are
+    filtered by d-mode): a curve on the atlas that crosses or touches the end of the last d-mode
+    would otherwise be cut there, and its last marching-squares vertex, interpolated on the grid
+    edge rather than on the curve, may lie a cell's curvature away from the rods next to the
+    boundary (issue 27: a 112 solution of the loaded mixed example, whose length leg's curve turns
+    at the 2/3 boundary, was found with max_mode 3 and missed with max_mode 2).  With the margin a
+    rod next to the boundary lies inside its curve, like any other."""
     lo = -(max_mode - 1) * np.pi - HALF_PI
     n = per_pi * max_mode + 1
     # the first node sits just below pi/2 (pi/2 itself is the degenerate straight rod)
     nodes = np.linspace(HALF_PI, lo, n)
     nodes[0] = HALF_PI - 1e-3
-    return nodes
+    step = np.pi / per_pi
+    return np.concatenate([nodes, lo - step * np.arange(1, MODE_MARGIN + 1)])
 
 
 @dataclass(frozen=True)
@@ -96,7 +112,7 @@ class Atlas:
 
     @property
     def phis_min(self) -> float:
-        """Lower end of the chart (end of d-mode ``max_mode``)."""
+        """End of d-mode ``max_mode`` in the chart (the grid goes :data:`MODE_MARGIN` cells beyond)."""
         return -(self.max_mode - 1) * np.pi - HALF_PI
 
 

@@ -7,7 +7,8 @@ cells; their boxes are padded by a fraction of their extent because the closed f
 between grid nodes.  Each node also carries the chart coordinates of its centre and its half
 extent in the chart, for the leaf test of the searches.
 
-Two trees exist: over the pinned rods' atlas (:mod:`flexkin.rod.atlas`, chart ``(v, phis)``)
+Two trees exist: over the pinned rods' atlas (:mod:`flexkin.rod.atlas`, chart ``(v, phis)``,
+with the seam patch of :mod:`flexkin.rod.seam_atlas` for the rods near straight under tension)
 and over the clamped rods' wrench atlas (:mod:`flexkin.rod.wrench_atlas`, chart
 ``(a, b, m0)``, periodic in the force direction).  Both are cached on disk.
 """
@@ -22,13 +23,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.cache import cached_arrays
-from .atlas import get_atlas
-from .slots import CHART_UNIFIED, CHART_WRENCH, NQ
+from .atlas import MODE_MARGIN, get_atlas
+from .closed_form import SEAM_OFFSET, is_seam
+from .seam_atlas import T_MAX, get_seam_atlas
+from .slots import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, NQ
 
 __all__ = ["CellTree", "pinned_tree", "clamped_tree"]
 
 #: relative padding of a leaf's bounds
 PAD = 0.1
+#: the pinned tree takes the seam patch's blocks that meet |psi_s| < SEAM_TREE_PSI (about 1.5
+#: cells of the atlas next to its corner), the atlas' blocks for the rest
+SEAM_TREE_PSI = 0.05
 
 
 @dataclass(frozen=True)
@@ -148,35 +154,66 @@ def _pad(lo: NDArray, hi: NDArray) -> tuple[NDArray, NDArray]:
     return lo - ext, hi + ext
 
 
+def _blocks2(feats: NDArray, z0: NDArray, z1: NDArray, stride: int, skip: NDArray | None = None):
+    """Block bounds, chart centres/extents and ``keep`` flags (blocks not wholly ``skip``ped; a
+    node of the block kept is enough) of a 2-D grid of rods ``feats`` (n0, n1, 6) with chart
+    coordinates ``z0`` (n0,), ``z1`` (n1,), in blocks of ``stride`` x ``stride`` cells."""
+    n0, n1 = feats.shape[:2]
+    ii = np.arange(0, n0 - 1, stride)
+    jj = np.arange(0, n1 - 1, stride)
+    blo = np.empty((len(ii), len(jj), 1, 6))
+    bhi = np.empty_like(blo)
+    bzc = np.zeros((len(ii), len(jj), 1, 3))
+    bzh = np.zeros_like(bzc)
+    keep = np.ones(blo.shape[:3], bool)
+    for a, i in enumerate(ii):
+        i1 = min(i + stride, n0 - 1)
+        for b, j in enumerate(jj):
+            j1 = min(j + stride, n1 - 1)
+            block = feats[i:i1 + 1, j:j1 + 1].reshape(-1, 6)
+            blo[a, b, 0], bhi[a, b, 0] = _pad(block.min(0), block.max(0))
+            bzc[a, b, 0, :2] = 0.5 * (z0[i] + z0[i1]), 0.5 * (z1[j] + z1[j1])
+            bzh[a, b, 0, :2] = 0.5 * abs(z0[i1] - z0[i]), 0.5 * abs(z1[j1] - z1[j])
+            if skip is not None and np.all(skip[i:i1 + 1, j:j1 + 1]):
+                keep[a, b, 0] = False
+    return blo, bhi, bzc, bzh, keep
+
+
 @lru_cache(maxsize=4)
 def pinned_tree(max_mode: int, stride: int = 4) -> CellTree:
-    """Tree over the pinned rods' atlas with leaves of ``stride`` x ``stride`` cells."""
+    """Tree over the pinned rods with leaves of ``stride`` x ``stride`` cells: the atlas (chart
+    ``(v, phis)``) and, for the rods near straight under tension it has no nodes for, the seam
+    patch (:mod:`flexkin.rod.seam_atlas`) near the taut line (:data:`SEAM_TREE_PSI`).  The seam
+    nodes' centres are stored offset-encoded, ``(psi_s, chi + SEAM_OFFSET)``
+    (:func:`~flexkin.rod.closed_form.is_seam`), so that one array holds both charts; their rods
+    ``q``, ``g`` are in the seam chart."""
     def build():
         A = get_atlas(max_mode)
         feats = np.stack([A.x, A.y, A.R * np.cos(A.psi), A.R * np.sin(A.psi), A.theta, np.zeros_like(A.x)], -1)
-        nv, nph = A.x.shape
-        ii = np.arange(0, nv - 1, stride)
-        jj = np.arange(0, nph - 1, stride)
-        blo = np.empty((len(ii), len(jj), 1, 6))
-        bhi = np.empty_like(blo)
-        bzc = np.zeros((len(ii), len(jj), 1, 3))
-        bzh = np.zeros_like(bzc)
-        for a, i in enumerate(ii):
-            i1 = min(i + stride, nv - 1)
-            for b, j in enumerate(jj):
-                j1 = min(j + stride, nph - 1)
-                block = feats[i:i1 + 1, j:j1 + 1].reshape(-1, 6)
-                blo[a, b, 0], bhi[a, b, 0] = _pad(block.min(0), block.max(0))
-                bzc[a, b, 0, :2] = 0.5 * (A.v[i] + A.v[i1]), 0.5 * (A.phis[j] + A.phis[j1])
-                bzh[a, b, 0, :2] = 0.5 * abs(A.v[i1] - A.v[i]), 0.5 * abs(A.phis[j1] - A.phis[j])
-        return _build(blo, bhi, bzc, bzh, np.ones(blo.shape[:3], bool))
+        t_uni = _build(*_blocks2(feats, A.v, A.phis, stride))
+        S = get_seam_atlas()
+        feats = np.stack([S.x, S.y, S.fx, S.fy, S.theta, np.zeros_like(S.x)], -1)
+        # only the blocks that meet |psi_s| < SEAM_TREE_PSI: the atlas' leaf boxes bound its rods
+        # down to there, not to the taut line (its nodes stop at phis = pi/2 - 1e-3, k' = 1e-6)
+        outside = np.broadcast_to((np.abs(S.psi_s) >= SEAM_TREE_PSI)[:, None], S.x.shape)
+        t_seam = _build(*_blocks2(feats, S.psi_s, S.chi + SEAM_OFFSET, stride, outside))
+        return _merge(t_uni, t_seam)
 
     def build_all():
         t = build()
-        t.update(_centre_rods(CHART_UNIFIED, t["zc"]))
+        seam = is_seam(t["zc"][:, 1])
+        zc = t["zc"].copy()
+        zc[seam, 1] -= SEAM_OFFSET
+        q = np.empty((len(zc), NQ))
+        g = np.empty((len(zc), NQ, 3))
+        for chart, sel in ((CHART_UNIFIED, ~seam), (CHART_SEAM, seam)):
+            r = _centre_rods(chart, zc[sel])
+            q[sel], g[sel] = r["q"], r["g"]
+        t.update(q=q, g=g)
         return t
 
-    t = cached_arrays("pinned-tree", (max_mode, stride, PAD, "q"), build_all)
+    key = (max_mode, stride, PAD, "q", "seam", SEAM_TREE_PSI, T_MAX, "margin", MODE_MARGIN)
+    t = cached_arrays("pinned-tree", key, build_all)
     return CellTree(CHART_UNIFIED, t["lo"], t["hi"], t["child"], t["zc"], t["zh"], t["q"], t["g"])
 
 

@@ -1,6 +1,11 @@
 """From refined candidates to reported solutions (shared by IK and FK).
 
-1. keep converged candidates whose rods are in scope and of d-mode <= ``max_mode``;
+1. keep converged candidates whose rods are in scope and of d-mode <= ``max_mode``; equilibria
+   found with a pinned rod beyond its scope are counted in ``diag["out_of_scope"]``, and those
+   with a rod near straight under tension beyond the seam chart's scope (``lambda L >
+   LAMBDA_SCOPE``: where the search for rods down to taut stops) in
+   ``diag["out_of_scope_taut"]``, for which the solvers say ``complete = False``
+   (:data:`SCOPE_MESSAGE`);
 2. canonical inputs and pose (angles wrapped into ``(-pi, pi]``);
 3. one solution per equilibrium (:func:`distinct`);
 4. stability, Jacobians (batched, :mod:`flexkin.analysis`);
@@ -25,15 +30,22 @@ from ..core.geometry2d import wrap_to_pi
 from ..io.progress import substage
 from ..results import Solution
 from ..rod.atlas import in_scope
-from ..rod.closed_form import mode_of, standard_chart
-from ..rod.kernels import CHART_WRENCH, TH
+from ..rod.closed_form import SEAM_OFFSET, is_seam, mode_of, standard_chart
+from ..rod.kernels import CHART_SEAM, CHART_WRENCH, PHI, TH
+from ..rod.seam_atlas import seam_in_scope
 from ..rod.slots import X as X_, Y as Y_
 from ..rod.wrench import wrench_mode
 from ..rod.wrench_atlas import in_wrench_scope
 from ..rod.state import RodState
 from ..system import System
 
-__all__ = ["finish_solutions", "build_solutions", "distinct", "canonical", "rod_modes"]
+__all__ = ["finish_solutions", "build_solutions", "distinct", "canonical", "rod_modes", "SCOPE_MESSAGE"]
+
+#: why a result is incomplete when the search reached equilibria with a rod near straight under
+#: tension beyond the numerical scope
+SCOPE_MESSAGE = ("equilibria with a rod near straight under tension beyond the numerical scope (lambda L > 15.9, "
+                 "a boundary layer too thin to confirm in double precision) were found and not reported: the "
+                 "solution list is incomplete there")
 
 
 def canonical(system: System, X: NDArray) -> NDArray[np.float64]:
@@ -45,6 +57,14 @@ def canonical(system: System, X: NDArray) -> NDArray[np.float64]:
     X[:, lay.inputs] = u
     X[:, lay.pose.start + 2] = wrap_to_pi(X[:, lay.pose.start + 2])
     return X
+
+
+def pinned_chart(z: NDArray, charts: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The solvers' chart ``(v, phis)`` of pinned rods with coordinates ``z`` (n, 2) in ``charts``
+    (n,): unified pairs as they are, seam pairs converted (stored raw, as the solvers iterate on
+    them, or offset-encoded, :func:`~flexkin.rod.closed_form.standard_chart`)."""
+    z1 = np.where((charts == CHART_SEAM) & ~is_seam(z[:, 1]), z[:, 1] + SEAM_OFFSET, z[:, 1])
+    return standard_chart(z[:, 0], z1)
 
 
 #: a rod whose base moment (or, for a clamped tip, tip moment) is below this, relative to its
@@ -68,7 +88,7 @@ def rod_modes(system: System, X: NDArray, charts: NDArray, with_boundary: bool =
         z = X[:, system.layout.rod[i]]
         pinned = charts[:, i] != CHART_WRENCH
         if np.any(pinned):
-            v, ph = standard_chart(z[pinned, 0], z[pinned, 1])
+            v, ph = pinned_chart(z[pinned], charts[pinned, i])
             # phis at a base inflection is -pi/2 - j pi: snap to it within the resolution, so
             # that the label is a property of the configuration (the lower one), not of rounding
             j = np.round((-0.5 * np.pi - ph) / np.pi)
@@ -80,23 +100,29 @@ def rod_modes(system: System, X: NDArray, charts: NDArray, with_boundary: bool =
     return (modes, boundary) if with_boundary else modes
 
 
-def _in_scope(system: System, X: NDArray, charts: NDArray, modes: NDArray, max_mode: int) -> NDArray[np.bool_]:
-    """Solutions whose rods are all in the searched set: pinned rods with ``k' >= KPRIME_MIN / 2``
-    (:mod:`flexkin.rod.atlas`), clamped rods within the wrench atlas' scope
-    (:func:`~flexkin.rod.wrench_atlas.in_wrench_scope`)."""
-    ok = np.ones(len(X), bool)
+def _in_scope(system: System, X: NDArray, charts: NDArray, modes: NDArray, max_mode: int
+              ) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+    """Solutions whose rods are all in the searched set, as three masks: the unified-chart pinned
+    rods (``k' >= KPRIME_MIN / 2``, :mod:`flexkin.rod.atlas`), the seam-chart pinned rods (near
+    straight under tension, ``lambda L <= LAMBDA_SCOPE``, :mod:`flexkin.rod.seam_atlas`: ``k'``
+    goes to 0 there at any tension) and the clamped rods (within the wrench atlas' scope,
+    :func:`~flexkin.rod.wrench_atlas.in_wrench_scope`)."""
+    ok_u, ok_s, ok_c = (np.ones(len(X), bool) for _ in range(3))
     if len(X) == 0:
-        return ok
+        return ok_u, ok_s, ok_c
     q, _ = system.unit_rods(X, charts)
     for i in range(3):
         z = X[:, system.layout.rod[i]]
-        pinned = charts[:, i] != CHART_WRENCH
-        if np.any(pinned):
-            v, _ = standard_chart(z[pinned, 0], z[pinned, 1])
-            ok[pinned] &= in_scope(v[:, None])
-        if np.any(~pinned):
-            ok[~pinned] &= in_wrench_scope(z[~pinned], q[~pinned, i, TH], modes[~pinned, i], max_mode)
-    return ok
+        seam = charts[:, i] == CHART_SEAM
+        clamped = charts[:, i] == CHART_WRENCH
+        unified = ~seam & ~clamped
+        if np.any(unified):
+            ok_u[unified] &= in_scope(z[unified, :1])
+        if np.any(seam):
+            ok_s[seam] &= seam_in_scope(q[seam, i, PHI])
+        if np.any(clamped):
+            ok_c[clamped] &= in_wrench_scope(z[clamped], q[clamped, i, TH], modes[clamped, i], max_mode)
+    return ok_u, ok_s, ok_c
 
 
 #: a rod whose unit tip lies within this of (1, 0) is straight over its whole length (an
@@ -177,7 +203,13 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
     X = canonical(system, X)
     modes = rod_modes(system, X, charts)
     ok = np.all(modes <= max_mode, axis=1) & np.all(np.isfinite(X), axis=1)
-    ok[ok] &= _in_scope(system, X[ok], charts[ok], modes[ok], max_mode)
+    ok_u, ok_s, ok_c = _in_scope(system, X[ok], charts[ok], modes[ok], max_mode)
+    if diag is not None and not np.all(ok_u & ok_s):  # equilibria the numerics cannot confirm: counted
+        idx = np.flatnonzero(ok)
+        for key, bad in (("out_of_scope", ~(ok_u & ok_s) & ok_c), ("out_of_scope_taut", ~ok_s & ok_c)):
+            out = idx[bad]
+            diag[key] = int(len(distinct(system, X[out], charts[out], residual[out]))) if len(out) else 0
+    ok[ok] &= ok_u & ok_s & ok_c
     X, charts, residual, modes = X[ok], charts[ok], residual[ok], modes[ok]
     if len(X) == 0:
         return []

@@ -23,7 +23,7 @@ from ..core.validation import as_triple, check_max_mode
 from ..io.progress import Progress, substage
 from ..results import FKDiagnostics, KinematicsResult, Solution
 from ..system import System
-from .finish import finish_solutions
+from .finish import SCOPE_MESSAGE, finish_solutions
 from .fk_lattice import lattice_starts
 from .fk_search import fk_starts
 from .ik import RESIDUAL_TOL, as_load
@@ -67,6 +67,8 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     -------
     KinematicsResult
         ``problem == "fk"``; ``solutions`` possibly empty, then ``message`` explains.
+        ``complete`` is ``False`` when the search stopped early, or when it reached equilibria
+        with a rod near straight under tension beyond the numerical scope (not reported).
     """
     t0 = time.perf_counter()
     max_mode = check_max_mode(max_mode)
@@ -85,17 +87,18 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     if np.any(system.clamped):  # 9-D interval bounds exclude too little: the pose lattice
         X, complete, stats = lattice_starts(system, u, w, max_mode, deadline=dl.end if dl.limited else None,
                                             progress=substage(progress, 0.0, 0.6, "pose lattice"))
+        charts = system.default_charts(len(X))
         nodes = stats.combinations
         diag["lattice_h"], diag["lattice_n_theta"] = stats.h, stats.n_theta
     else:
-        X, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=dl.for_search(),
-                                       progress=substage(progress, 0.0, 0.6, "branch-and-bound"))
+        X, charts, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=dl.for_search(),
+                                               progress=substage(progress, 0.0, 0.6, "branch-and-bound"))
     diag["candidates"] = int(len(X))
     diag["search_complete"] = complete
     diag["nodes"] = int(nodes)
     if progress is not None:
         progress(0.6, f"Newton on {len(X)} candidates")
-    sols = refine_fk(system, mech, X, system.default_charts(len(X)), w, max_mode, diag, deadline=dl,
+    sols = refine_fk(system, mech, X, charts, w, max_mode, diag, deadline=dl,
                      progress=substage(progress, 0.7, 1.0, "equilibria"))
     if dl.limited and not complete and "lattice_h" in diag:
         dl.hit = True  # the lattice search stops only at the deadline
@@ -104,7 +107,10 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     if diag.get("continuum"):
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
                "the least loaded one is reported")
-    if not complete:
+    if diag.get("out_of_scope_taut"):
+        complete = False
+        msg = SCOPE_MESSAGE
+    if not diag["search_complete"] or dl.hit:
         why = dl.message() if dl.hit else f"search budget exhausted ({nodes} node triples examined)"
         msg = f"{why}: the global search did not finish, the solution list may be incomplete" + \
             ("" if sols else "; " + msg)

@@ -34,7 +34,8 @@ from ..core.budget import Deadline, Rate
 from ..core.jit import njit
 from ..core.linalg import solve_into
 from ..rod.cell_tree import clamped_tree, pinned_tree
-from ..rod.slots import NQ
+from ..rod.closed_form import SEAM_OFFSET, is_seam
+from ..rod.slots import CHART_SEAM, CHART_WRENCH, NQ
 from ..system import System, assemble
 
 __all__ = ["fk_starts"]
@@ -392,9 +393,13 @@ def _node_shares(child: NDArray[np.int64], roots: NDArray[np.int64]) -> NDArray[
 def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: int, *, stride: int = 4,
               eps_tip: float = 0.01, eps_force: float = 0.05, eps_ang: float = 0.05, reach: float = 1.0,
               max_nodes: int = MAX_NODES, deadline: Deadline | None = None, fallback: int = 20_000,
-              progress: Callable[[float, str], None] | None = None) -> tuple[NDArray[np.float64], bool, int]:
-    """Starting points (n, n_unknowns) for the FK Newton, whether the search completed, and the
-    number of node triples examined.
+              progress: Callable[[float, str], None] | None = None
+              ) -> tuple[NDArray[np.float64], NDArray[np.int64], bool, int]:
+    """Starting points (n, n_unknowns) for the FK Newton, their rods' charts (n, 3), whether the
+    search completed, and the number of node triples examined.
+
+    Pinned rods come from the atlas (unified chart) or, near straight under tension, from the
+    seam patch (seam chart; :func:`~flexkin.rod.cell_tree.pinned_tree`).
 
     When the node budget ``max_nodes`` runs out, the centres of up to ``fallback`` unresolved
     triples (a deterministic subsample) are returned as well.  With a ``deadline``
@@ -443,7 +448,7 @@ def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: in
         if n_stack + 2 > len(stack):
             stack = np.concatenate([stack, np.empty_like(stack)])
     complete = n_stack == 0
-    out = [starts[:n_starts]]
+    out = [_decode(system, starts[:n_starts], charts)]
     if dl.limited:
         fallback = min(fallback, max(0, int(dl.remaining() / REFINE_COST) - n_starts))
     if not complete and fallback > 0:  # unresolved triples: their centres, fitted pose
@@ -455,9 +460,27 @@ def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: in
             sl = system.layout.rod[i]
             X[:, sl] = zc[rest[:, i], :sl.stop - sl.start]
         X[:, system.layout.inputs] = u
-        tips = system.rod_world(X, np.broadcast_to(charts, (len(X), 3)))["tip"]
+        X, ch = _decode(system, X, charts)
+        tips = system.rod_world(X, ch)["tip"]
         from ..core.geometry2d import fit_pose
 
         X[:, system.layout.pose] = fit_pose(system.attach, tips)
-        out.append(X)
-    return np.concatenate(out), complete, examined
+        out.append((X, ch))
+    return (np.concatenate([x for x, _ in out]), np.concatenate([c for _, c in out]).astype(np.int64), complete,
+            examined)
+
+
+def _decode(system: System, X: NDArray, charts: NDArray) -> tuple[NDArray, NDArray]:
+    """Rows ``X`` whose pinned rods may be offset-encoded seam pairs (nodes of the seam patch) ->
+    raw coordinates and the charts (n, 3) they are in."""
+    X = np.array(X, dtype=float)
+    leg_charts = np.asarray(charts, dtype=np.int64)
+    ch = np.broadcast_to(leg_charts, (len(X), 3)).copy()
+    for i in range(3):
+        if leg_charts[i] == CHART_WRENCH:
+            continue
+        c = system.layout.rod[i].start + 1
+        seam = is_seam(X[:, c])
+        X[seam, c] -= SEAM_OFFSET
+        ch[seam, i] = CHART_SEAM
+    return X, ch

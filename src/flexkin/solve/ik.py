@@ -26,7 +26,7 @@ from ..results import IKDiagnostics, KinematicsResult, Solution
 from ..system import System
 from .curves import leg_curves
 from .equilibrium import equilibrium_triples
-from .finish import finish_solutions
+from .finish import SCOPE_MESSAGE, finish_solutions
 from .sliced import newton_within
 
 __all__ = ["ik", "refine_ik", "RESIDUAL_TOL", "as_load"]
@@ -75,7 +75,9 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     -------
     KinematicsResult
         ``problem == "ik"``; ``solutions`` (possibly empty, then ``message`` explains),
-        ``curves`` holds the geometric-condition curves of step 1.
+        ``curves`` holds the geometric-condition curves of step 1.  ``complete`` is ``False``
+        when the search stopped early, or when it reached equilibria with a rod near straight
+        under tension beyond the numerical scope (not reported; ``message`` says so).
     """
     t0 = time.perf_counter()
     max_mode = check_max_mode(max_mode)
@@ -97,20 +99,23 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     # ---- step 2: equilibrium triples on the polylines (wrench space) -----------------------
     wscale = system.wrench_scale()
     lay = system.layout
-    p0s, p1s, zs, us = [], [], [], []
+    p0s, p1s, zs, us, cs = [], [], [], [], []
+    default = system.default_charts(1)[0]
     for i, c in enumerate(curves):
         arm = B[i] - pose[:2]
-        P0, P1, Z0, Z1, U0, U1 = [], [], [], [], [], []
+        P0, P1, Z0, Z1, U0, U1, C = [], [], [], [], [], [], []
         for br in c.branches:
             f = br["force"]
             wr = np.stack([f[:, 0], f[:, 1], arm[0] * f[:, 1] - arm[1] * f[:, 0] + br["tip_moment"]], -1) / wscale
             z = br["z"]
             P0.append(wr[:-1]); P1.append(wr[1:]); Z0.append(z[:-1]); Z1.append(z[1:])
             U0.append(br["input"][:-1]); U1.append(br["input"][1:])
+            C.append(br["chart"][:-1] if "chart" in br else np.full(len(z) - 1, default[i], dtype=np.int64))
         cat = (lambda L, d: np.concatenate(L) if L else np.zeros((0,) + d))
         dim = lay.rod[i].stop - lay.rod[i].start
         p0s.append(cat(P0, (3,))); p1s.append(cat(P1, (3,)))
         zs.append((cat(Z0, (dim,)), cat(Z1, (dim,)))); us.append((cat(U0, ()), cat(U1, ())))
+        cs.append(np.concatenate(C) if C else np.zeros(0, np.int64))
     if progress is not None:
         progress(0.3, "platform equilibrium on the curves")
     seg, s, complete = equilibrium_triples(p0s, p1s, w / wscale, deadline=dl.for_search(), leaf_cost=CANDIDATE_COST)
@@ -124,6 +129,7 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
                                 tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves)
     X = np.zeros((len(seg), lay.n_unknowns))
     X[:, lay.pose] = pose
+    charts = np.stack([cs[i][seg[:, i]] for i in range(3)], axis=1)  # a rod in the chart of its branch
     for i in range(3):
         a, b = zs[i][0][seg[:, i]], zs[i][1][seg[:, i]]
         X[:, lay.rod[i]] = a + s[:, i:i + 1] * (b - a)
@@ -133,14 +139,17 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     # ---- step 3: Newton on the full equations ----------------------------------------------
     if progress is not None:
         progress(0.4, f"Newton on {len(X)} candidates")
-    sols = refine_ik(system, mech, X, system.default_charts(len(X)), w, max_mode, diag, deadline=dl,
+    sols = refine_ik(system, mech, X, charts, w, max_mode, diag, deadline=dl,
                      progress=substage(progress, 0.45, 1.0, "equilibria"))
     complete = complete and not dl.hit
     msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
     if diag.get("continuum"):
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
                "the least loaded one is reported")
-    if not complete:
+    if diag.get("out_of_scope_taut"):
+        complete = False
+        msg = SCOPE_MESSAGE
+    if not diag["search_complete"] or dl.hit:
         msg = (dl.message("the solution list may be incomplete") if dl.hit else
                "search stopped early (node budget): the solution list may be incomplete")
     res = KinematicsResult(tuple(sols), complete, msg, time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech,
