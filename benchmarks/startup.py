@@ -4,11 +4,12 @@ Run::
 
     python benchmarks/startup.py [--repeat N] [--json PATH] [-- CLI ARGUMENTS ...]
 
-Each run starts a fresh interpreter that runs the command exactly as the console script does
-(``flexkin.cli.main``, output to ``/dev/null``), instrumented:
+Each run starts a fresh interpreter that runs the command as the console script does
+(``flexkin.cli.main``, ended like ``flexkin.cli.console``; output to ``/dev/null``), instrumented:
 
-* **imports**: time spent in ``import`` statements outside the kernels' first calls (all of
-  them: at start-up and the lazy ones inside the command), by top-level package;
+* **imports**: the execution of modules outside the kernels' first calls (all of them: at
+  start-up and the lazy ones inside the command), by top-level package (self time: a module's
+  own execution, without the modules it imports);
 * **numba initialisation**: numba's one-off set-up at the first compiled call (its typing and
   target registries, and the ``scipy.linalg`` that numba itself imports to find BLAS), measured
   apart by forcing it first;
@@ -180,6 +181,9 @@ state["rc"] = rc
 state["scipy"] = sorted(m for m in sys.modules if m.startswith("scipy.") and m.count(".") == 1)
 del state["stack"]
 print("@@" + json.dumps(state), file=sys.stderr)
+if hasattr(cli, "console") and ARGS[0] in ("ik", "fk"):  # end as the console script ends the command
+    sys.stderr.flush()
+    os._exit(rc)
 """
 
 
@@ -202,7 +206,8 @@ def _run_child(args: list[str]) -> tuple[dict, float, float]:
 
 def _plain(args: list[str]) -> tuple[float, float]:
     """Wall and CPU seconds of the command as the console script runs it (no instrumentation)."""
-    code = "import sys; from flexkin.cli import main; sys.exit(main())"
+    code = ("import sys, flexkin.cli as c\n"
+            "c.console() if hasattr(c, 'console') else sys.exit(c.main())")  # as the installed command
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run([sys.executable, "-c", code, *args], check=True, cwd=ROOT, stdout=subprocess.DEVNULL,

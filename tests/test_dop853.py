@@ -38,14 +38,14 @@ def flexkin_dop853(y0, t_end, first_step, rtol, atol, max_step=np.inf):
     ut = np.empty(n)
     un = np.empty(n)
     ts, ys = [0.0], [u[:2].copy()]
-    h = first_step
+    t, h_abs = 0.0, first_step
     _autonomous(u, K[0])
-    for _ in range(100_000):
-        if u[2] >= t_end:
-            break
-        h = min(h, max_step, t_end - u[2])
+    while t < t_end:   # scipy's step loop (time kept apart, as scipy does: t_new = t + h)
+        h_abs = min(h_abs, max_step)
         rejected = False
         while True:
+            t_new = min(t + h_abs, t_end)
+            h = t_new - t
             for s in range(1, d.STAGES):
                 d.stage_state(s, u, h, K, ut, n)
                 _autonomous(ut, K[s])
@@ -54,15 +54,16 @@ def flexkin_dop853(y0, t_end, first_step, rtol, atol, max_step=np.inf):
             # estimate is exactly zero (t' = 1 is integrated exactly), so it adds nothing
             err = d.error_norm(u[:2], un[:2], h, K[:, :2].copy(), rtol, atol, 2)
             fac = d.step_factor(err, rejected)
+            h_abs = h * fac
             if err < 1.0:
                 break
             rejected = True
-            h *= fac
-        u[:] = un
+        t = t_new
+        u[:2] = un[:2]
+        u[2] = t
         _autonomous(u, K[0])
-        ts.append(u[2])
+        ts.append(t)
         ys.append(u[:2].copy())
-        h *= fac
     return np.array(ts), np.array(ys)
 
 
