@@ -445,6 +445,7 @@ def test_explore_in_a_real_browser(server, driver, tmp_path):
                                           "return Math.min(...__lat.settled.filter(t => t >= up)) - up;"))
         n_rel = wait_settled(driver, "the list after a slider release")
         assert assert_drawing_matches_ik(driver, mech, app_pose(driver)) == n_rel
+    release_pose = app_pose(driver)
 
     # 8. far up with the y slider: no equilibrium there, and the app keeps running
     slider_drag(driver, "y", steps=16, to_end=+1)
@@ -461,6 +462,8 @@ def test_explore_in_a_real_browser(server, driver, tmp_path):
               "track_e2e_p90_ms": float(np.percentile(track_ms, 90)), "release_to_full_ik_ms": release_ms,
               "slider_release_to_list_median_ms": statistics.median(release_list_ms),
               "slider_release_to_list_ms": release_list_ms,
+              "slider_release_pose": [release_pose[0], release_pose[1], math.degrees(release_pose[2])],
+              "n_solutions_after_slider_releases": n_rel,
               "n_solutions_after_release": n1, "test_seconds": time.time() - t_start}
     (tmp_path / "latency.json").write_text(json.dumps(report, indent=2))
     if os.environ.get("FLEXKIN_LATENCY_JSON"):

@@ -67,3 +67,19 @@ def test_refine_does_import_its_integrator(tmp_path):
     """The check above can fail: the Cosserat refinement loads flexkin.cosserat."""
     mods = modules_after(["refine", PROTO, "--pose", "0", "0", "90", "--json", "--stable-only"], tmp_path)
     assert _loaded(mods, "flexkin.cosserat")
+
+
+def test_console_script_flushes_and_keeps_the_exit_status(tmp_path):
+    """The installed command (flexkin.cli:console) ends one-shot commands with os._exit: all of
+    the output still arrives, and the exit status is main's."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(ROOT / "src") + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    cmd = [sys.executable, "-c", "from flexkin.cli import console; console()"]
+    ok = subprocess.run(cmd + ["ik", PROTO, "--pose", "0", "0", "90", "--json"], env=env, cwd=ROOT,
+                        capture_output=True, text=True, timeout=1800)
+    assert ok.returncode == 0, ok.stderr
+    d = json.loads(ok.stdout)       # the whole JSON object (tens of kB through a pipe)
+    assert d["problem"] == "ik" and len(d["solutions"]) > 10
+    bad = subprocess.run(cmd + ["ik", str(tmp_path / "missing.toml"), "--pose", "0", "0", "0"], env=env, cwd=ROOT,
+                         capture_output=True, text=True, timeout=600)
+    assert bad.returncode == 2 and bad.stderr.strip() and len(bad.stderr.strip().splitlines()) == 1
