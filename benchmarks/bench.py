@@ -6,8 +6,8 @@ Run::
     python benchmarks/bench.py [--repeat N] [--quick] [--json PATH] [--only SUBSTRING ...]
 
 Every row reports the median, min and max wall-clock time of ``N`` runs after one warm-up run
-and, for in-process rows, the median process CPU time (all threads; on a loaded machine the
-CPU time is the steadier figure)
+and the median CPU time (all threads of the process, and for whole-process rows of the child; on
+a loaded machine the CPU time is the steadier figure)
 (the warm-up loads the compiled kernels and builds the per-process caches; whole-process rows
 start a fresh interpreter each time and so include import and kernel loading).  The header
 gives the machine's core count and its load average: the figures are only comparable between
@@ -31,7 +31,7 @@ import json
 import math
 import os
 import platform
-import shutil
+import resource
 import statistics
 import subprocess
 import sys
@@ -97,18 +97,24 @@ _CPU: list[float] = []
 
 def _times(fn: Callable[[], Any], repeat: int, warm: bool = True) -> list[float]:
     """Wall-clock seconds of ``repeat`` runs of ``fn`` after an optional warm-up run; their
-    process CPU seconds are left in :data:`_CPU`."""
+    CPU seconds (this process and its finished children) are left in :data:`_CPU`."""
     if warm:
         fn()
     out = []
     _CPU.clear()
     for _ in range(repeat):
-        c = time.process_time()
+        c = time.process_time() + _children_cpu()
         t = time.perf_counter()
         fn()
         out.append(time.perf_counter() - t)
-        _CPU.append(time.process_time() - c)
+        _CPU.append(time.process_time() + _children_cpu() - c)
     return out
+
+
+def _children_cpu() -> float:
+    """User + system seconds of the finished child processes (whole-process rows)."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def _cpu() -> list[float]:
@@ -116,8 +122,10 @@ def _cpu() -> list[float]:
 
 
 def _cli() -> list[str]:
-    exe = shutil.which("flexkin")
-    return [exe] if exe else [sys.executable, "-c", "import sys; from flexkin.cli import main; sys.exit(main())"]
+    """The ``flexkin`` command as its console script runs it (``flexkin.cli:console``), with this
+    interpreter: independent of the installed script's age and of shims on the PATH (pyenv's
+    adds its own start-up)."""
+    return [sys.executable, "-c", "from flexkin.cli import console; console()"]
 
 
 def _process(args: list[str]) -> Callable[[], None]:
@@ -149,7 +157,7 @@ def ik_rows(rep: int, rows: list[Row], ctx: dict) -> None:
 def cli_ik_row(rep: int, rows: list[Row], ctx: dict) -> None:
     run = _process(["ik", str(PROTO), "--pose", "0", "0", "90", "--json"])
     rows.append(Row("`flexkin ik examples/prototype_3pfr.toml --pose 0 0 90 --json`, whole process",
-                    _times(run, rep), [], 0.5, 0.3, unit="s"))
+                    _times(run, rep), _cpu(), 0.5, 0.3, unit="s"))
 
 
 def cli_calibrate_row(rep: int, rows: list[Row], ctx: dict) -> None:

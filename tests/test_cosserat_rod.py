@@ -53,20 +53,7 @@ CHART = [(0.3, 0.5), (1.0, 1.2), (-2.0, 0.2), (0.5, -3.0), (0.1, -5.0), (2.5, -1
          (0.05, 1.5), (3.0, 0.9), (-0.7, -2.5), (1.7, -7.5), (-3.0, -10.0)]
 
 
-# ---- the integrator -------------------------------------------------------------------------
-def test_dop853_coefficients_are_8th_order():
-    from flexkin.cosserat import _dop853 as d
-
-    assert np.allclose(d.A.sum(1), d.C, atol=1e-14)
-    for k in range(8):  # quadrature conditions b . c^k = 1/(k+1), k < 8
-        assert abs(d.B @ d.C ** k - 1.0 / (k + 1)) < 1e-13
-    try:
-        from scipy.integrate._ivp import dop853_coefficients as ref
-    except ImportError:  # pragma: no cover - private scipy module moved
-        return
-    assert np.array_equal(d.A, ref.A[:12, :12]) and np.array_equal(d.B, ref.B) and np.array_equal(d.C, ref.C[:12])
-
-
+# ---- the integrator (its table: tests/test_dop853.py) ---------------------------------------
 @pytest.mark.parametrize("v, phis", CHART)
 def test_kirchhoff_limit_matches_closed_form(v, phis):
     """tau = 0 (and rigid section, no load, tau = 1) reproduce flexkin's elliptic closed form."""

@@ -6,8 +6,9 @@ chromium, chromedriver, selenium or bokeh is missing -- unless ``FLEXKIN_REQUIRE
 (set it in CI), where a missing piece is a failure.  Nothing downloads a browser.
 
 ``FLEXKIN_UPDATE_SCREENSHOT=1`` writes the screenshot to ``docs/explorer.png`` (else to the
-test's tmp_path).  The end-to-end latencies measured in the browser are printed (``-s``) and
-written to ``tmp_path/latency.json``.
+test's tmp_path).  The end-to-end latencies measured in the browser -- pointer move to tracked
+drawing, and the median of five slider releases to the full list shown -- are printed (``-s``)
+and written to ``tmp_path/latency.json``, and to ``$FLEXKIN_LATENCY_JSON`` when that is set.
 """
 
 from __future__ import annotations
@@ -383,6 +384,8 @@ def test_explore_in_a_real_browser(server, driver, tmp_path):
     assert f"#{target.id} d-mode change" in ev and target.mode_label in ev
     # 4. on release: the full IK at the pose reached, with the tracked solution selected in it
     n1 = wait_settled(driver, "the full IK after the drag")
+    lat = js(driver, "return window.__lat;")  # release of the platform -> the full IK shown
+    release_ms = next((t for t in lat["settled"] if t >= lat["up"][0]), math.nan) - lat["up"][0] if lat["up"] else None
     pose1 = app_pose(driver)
     assert pose1[:2] == pytest.approx(P_MODE[:2], abs=0.01)  # a pixel is about 3 mm here
     assert assert_drawing_matches_ik(driver, mech, pose1) == n1
@@ -429,6 +432,21 @@ def test_explore_in_a_real_browser(server, driver, tmp_path):
     n2 = wait_settled(driver, "the full IK after the theta slider")
     assert assert_drawing_matches_ik(driver, mech, app_pose(driver)) == n2
 
+    # 7b. release -> final list, timed in the page: five short drags of the x slider (the
+    #     tracked equilibrium follows; each release asks for the full IK)
+    release_list_ms = []
+    for k in range(5):
+        js(driver, "__lat.up = []; __lat.settled = [];")
+        slider_drag(driver, "x", 24 if k % 2 == 0 else -24, steps=6)
+        wait_for(lambda: js(driver, "const up = __lat.up[__lat.up.length - 1];"
+                                    "return up !== undefined && __lat.settled.some(t => t >= up);"),
+                 what="the full list after a slider release")
+        release_list_ms.append(js(driver, "const up = __lat.up[__lat.up.length - 1];"
+                                          "return Math.min(...__lat.settled.filter(t => t >= up)) - up;"))
+        n_rel = wait_settled(driver, "the list after a slider release")
+        assert assert_drawing_matches_ik(driver, mech, app_pose(driver)) == n_rel
+    release_pose = app_pose(driver)
+
     # 8. far up with the y slider: no equilibrium there, and the app keeps running
     slider_drag(driver, "y", steps=16, to_end=+1)
     wait_for(lambda: settled_count(driver) == 0, what="'No equilibrium here'")
@@ -440,12 +458,16 @@ def test_explore_in_a_real_browser(server, driver, tmp_path):
     assert server.proc.poll() is None
 
     # end-to-end latency: pointer move -> tracked drawing in the page; release -> full IK shown
-    lat = js(driver, "return window.__lat;")
-    release_ms = next((t for t in lat["settled"] if t >= lat["up"][0]), math.nan) - lat["up"][0] if lat["up"] else None
     report = {"tracked_moves": len(track_ms), "track_e2e_median_ms": statistics.median(track_ms),
               "track_e2e_p90_ms": float(np.percentile(track_ms, 90)), "release_to_full_ik_ms": release_ms,
+              "slider_release_to_list_median_ms": statistics.median(release_list_ms),
+              "slider_release_to_list_ms": release_list_ms,
+              "slider_release_pose": [release_pose[0], release_pose[1], math.degrees(release_pose[2])],
+              "n_solutions_after_slider_releases": n_rel,
               "n_solutions_after_release": n1, "test_seconds": time.time() - t_start}
     (tmp_path / "latency.json").write_text(json.dumps(report, indent=2))
+    if os.environ.get("FLEXKIN_LATENCY_JSON"):
+        Path(os.environ["FLEXKIN_LATENCY_JSON"]).write_text(json.dumps(report, indent=2))
     print(f"\nexplorer end-to-end (browser): {json.dumps(report)}")
     assert len(track_ms) >= 15, "the drawing did not follow the drag"
 
@@ -479,3 +501,40 @@ def test_ctrl_c_stops_the_server():
     finally:
         srv.stop()
 
+
+
+@needs_bokeh
+def test_foreign_host_refused_and_a_plain_fetch_keeps_the_server():
+    """A request naming another host (a DNS-rebinding page sends its own name as Host and as
+    Origin) gets 403 for the page, the exports and the websocket; a page fetched without a
+    browser (curl, a link preview) opens a session that ends unused and must not stop the
+    server (it used to stop it ~9 s later, "the last browser tab was closed")."""
+    import http.client
+
+    srv = ServerProcess()
+    try:
+        port = int(srv.url.rstrip("/").rsplit(":", 1)[1])
+
+        def get(path: str, host: str, **headers: str) -> int:
+            conn = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
+            try:
+                conn.request("GET", path, headers={"Host": host, **headers})
+                return conn.getresponse().status
+            finally:
+                conn.close()
+
+        assert get("/", f"localhost:{port}") == 200       # the plain fetch (no browser)
+        assert get("/", f"127.0.0.1:{port}") == 200
+        evil = f"rebound.example:{port}"
+        ws = {"Connection": "Upgrade", "Upgrade": "websocket", "Sec-WebSocket-Version": "13",
+              "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ==", "Origin": f"http://{evil}"}
+        assert get("/", evil, Origin=f"http://{evil}") == 403
+        assert get("/export/any/solutions.json", evil) == 403
+        assert get("/ws", evil, **ws) == 403
+        assert get("/", f"localhost.rebound.example:{port}") == 403
+        # the fetched pages' sessions end unused after ~1.5 s, the idle grace is 3 s: the server
+        # must still run well after both
+        assert srv.wait(12) is None, f"the server stopped: {''.join(srv.err)[-500:]}"
+        assert "tab was closed" not in "".join(srv.err)
+    finally:
+        srv.stop()

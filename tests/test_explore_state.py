@@ -259,7 +259,7 @@ def test_exports(mech, ik0, tmp_path):
     st = fresh(mech, ik0)
     st.select(ik0.solutions[1].id)
     d = json.loads(export.solutions_json(st))
-    assert d == json.loads(json.dumps(ik0.to_dict()))
+    assert d == json.loads(json.dumps(ik0.to_dict(feasibility=True)))
     assert [s["id"] for s in d["solutions"]] == [s.id for s in ik0.solutions]
     assert d["pose"] == pytest.approx([0.0, 0.3, 90.0])
     assert "feasible" in d["solutions"][0]

@@ -822,5 +822,34 @@ def main(argv: Sequence[str] | None = None) -> int:
             return EXIT_USAGE
 
 
+#: commands that leave no thread, process pool or temporary file behind (see :func:`console`)
+_ONE_SHOT = frozenset({"show", "rod", "ik", "fk", "path", "refine", "calibrate"})
+
+
+def console() -> None:
+    """The installed ``flexkin`` command: :func:`main` on ``sys.argv``, then the exit.
+
+    After a one-shot command (show, rod, ik, fk, path, refine, calibrate) the process ends with
+    ``os._exit`` as soon as stdout and stderr are flushed and a temporary kernel cache (read-only
+    cache directory) is removed: the interpreter's teardown of numba's compiler state would add
+    about 0.15 s, a fifth of an IK command (docs/speed.md).  Every file those commands write is
+    closed when :func:`main` returns.  Other commands (workspace pools, studies, the explorer,
+    reproduce) exit normally.
+    """
+    argv = sys.argv[1:]
+    code = main(argv)
+    if argv and argv[0] in _ONE_SHOT:
+        try:
+            sys.stdout.flush()
+            sys.stderr.flush()
+        except (OSError, ValueError):  # a closed or broken pipe: the ordinary exit reports it
+            sys.exit(code)
+        from .core.jit import remove_temporary_caches
+
+        remove_temporary_caches()
+        os._exit(code)
+    sys.exit(code)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    console()

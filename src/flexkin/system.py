@@ -205,8 +205,10 @@ class System:
         out = np.empty((n, 3, NQ))
         grad = np.empty((n, 3, NQ, 3))
         ch = np.asarray(charts, dtype=np.int64).reshape(n, 3)
+        q, g = np.empty((n, NQ)), np.empty((n, NQ, 3))   # contiguous: the kernel's one signature
         for i in range(3):
-            eval_rods(np.ascontiguousarray(ch[:, i]), self.rod_x(X, i), out[:, i], grad[:, i])
+            eval_rods(np.ascontiguousarray(ch[:, i]), self.rod_x(X, i), q, g)
+            out[:, i], grad[:, i] = q, g
         return out, grad
 
     def rod_world(self, X: NDArray, charts: NDArray) -> dict[str, NDArray]:

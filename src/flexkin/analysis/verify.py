@@ -2,9 +2,9 @@
 
 Every reported solution is checked independently of the closed form that found it: each rod
 is integrated as an initial-value problem from its clamp, with the *reported* base moment and
-tip force, by an adaptive, error-controlled Dormand-Prince 8(5,3) scheme (the DOP853 tableau
-of :mod:`flexkin.cosserat._dop853`, the embedded 5th- and 3rd-order error estimators of
-:mod:`scipy.integrate`), compiled with numba.
+tip force, by an adaptive, error-controlled Dormand-Prince 8(5,3) scheme (the DOP853 step of
+:mod:`flexkin.core.dop853` with Hairer's step-size control, as in
+:func:`scipy.integrate.solve_ivp`), compiled with numba.
 
 The ODE of the unit rod (``L = EI = 1``, clamp at the origin, tangent along +x; SPEC §2, the
 force ``f`` on the tip by the platform is the constant internal force, paper Eqs. 7-8)::
@@ -60,11 +60,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.integrate._ivp.dop853_coefficients import E3 as _E3, E5 as _E5
 
+from ..core.dop853 import STAGES, advance, error_norm, stage_state, step_factor
 from ..core.geometry2d import rotate, wrap_to_pi
 from ..core.jit import njit
-from ..cosserat._dop853 import A as _A, B as _B, STAGES
 from ..rod.closed_form import SEAM_OFFSET, is_seam, standard_chart
 from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, profile
 from ..system import System
@@ -86,9 +85,6 @@ SEGMENT_GROWTH = 3.0
 H_MAX = 1.0 / 32.0
 #: steps allowed per half rod before the integration gives up (the solution is then not verified)
 MAX_STEPS = 100_000
-
-_E3c = np.ascontiguousarray(_E3[:STAGES])
-_E5c = np.ascontiguousarray(_E5[:STAGES])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -120,6 +116,7 @@ def _dop853(y0, fx, fy, direction, span, rtol, atol, hmax, max_steps, y, mbuf):
     lam = math.sqrt(math.sqrt(fx * fx + fy * fy))
     h = min(hmax, 0.05 / (1.0 + lam + abs(y[3])), span)
     _rhs(y, fx, fy, K[0])
+    rejected = False
     for _ in range(max_steps):
         if t >= span:
             return nm
@@ -128,40 +125,23 @@ def _dop853(y0, fx, fy, direction, span, rtol, atol, hmax, max_steps, y, mbuf):
             h = span - t
         hs = direction * h
         for st in range(1, STAGES):
-            for i in range(4):
-                acc = 0.0
-                for j in range(st):
-                    acc += _A[st, j] * K[j, i]
-                yt[i] = y[i] + hs * acc
+            stage_state(st, y, hs, K, yt, 4)
             _rhs(yt, fx, fy, K[st])
-        e5 = 0.0
-        e3 = 0.0
-        for i in range(4):
-            acc = 0.0
-            a5 = 0.0
-            a3 = 0.0
-            for j in range(STAGES):
-                acc += _B[j] * K[j, i]
-                a5 += _E5c[j] * K[j, i]
-                a3 += _E3c[j] * K[j, i]
-            yn[i] = y[i] + hs * acc
-            sc = atol + rtol * max(abs(y[i]), abs(yn[i]))
-            e5 += (a5 / sc) ** 2
-            e3 += (a3 / sc) ** 2
-        # scipy's DOP853 error norm (Hairer, Norsett & Wanner II.10)
-        err = 0.0 if e5 == 0.0 and e3 == 0.0 else h * e5 / math.sqrt((e5 + 0.01 * e3) * 4.0)
+        advance(y, hs, K, yn, 4)
+        err = error_norm(y, yn, hs, K, rtol, atol, 4)
         if not math.isfinite(err):
             return -1
-        if err <= 1.0:
+        fac = step_factor(err, rejected)
+        if err < 1.0:
             t = span if last else t + h
             for i in range(4):
                 y[i] = yn[i]
             mbuf[nm] = y[3]
             nm += 1
             _rhs(y, fx, fy, K[0])
-            fac = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** (-1.0 / 8.0))
+            rejected = False
         else:
-            fac = max(0.2, 0.9 * err ** (-1.0 / 8.0))
+            rejected = True
         h = min(hmax, h * fac)
         if h < 1e-14:
             return -1

@@ -81,6 +81,20 @@ def _not_writable(d: Path) -> str | None:
     return None
 
 
+#: temporary kernel caches of this process (removed at exit by :func:`remove_temporary_caches`)
+_TEMPORARY: list[Path] = []
+
+
+def remove_temporary_caches() -> None:
+    """Remove this process's temporary kernel caches (registered with :mod:`atexit`; a caller
+    that ends the process with ``os._exit`` calls it first)."""
+    while _TEMPORARY:
+        shutil.rmtree(_TEMPORARY.pop(), True)
+
+
+atexit.register(remove_temporary_caches)
+
+
 def _mirror(src: Path) -> Path | None:
     """A private temporary directory mirroring ``src`` with symbolic links (removed at exit),
     or None if none can be made."""
@@ -88,7 +102,7 @@ def _mirror(src: Path) -> Path | None:
         tmp = Path(tempfile.mkdtemp(prefix="flexkin-kernels-"))
     except OSError:
         return None
-    atexit.register(shutil.rmtree, tmp, True)
+    _TEMPORARY.append(tmp)
     try:
         for root, _, files in os.walk(src):
             dst = tmp / Path(root).relative_to(src)

@@ -26,7 +26,7 @@ is not integrated).  They are integrated with the same Runge–Kutta scheme as t
 are the exact derivatives of the discrete map (no finite differences).
 
 Integrator: fixed-step Dormand–Prince 8th-order Runge–Kutta (12 stages, the propagating
-scheme of DOP853).  The global error of the tip state is O(h^8); the step count is chosen by
+scheme of DOP853: :mod:`flexkin.core.dop853`).  The global error of the tip state is O(h^8); the step count is chosen by
 :func:`flexkin.cosserat.rod.auto_steps` from the rod's force and curvature scales.
 """
 
@@ -35,9 +35,8 @@ from __future__ import annotations
 import numpy as np
 from numba import prange
 
+from ..core.dop853 import STAGES as _NS, advance, stage_state
 from ..core.jit import njit
-
-from ._dop853 import A as _A, B as _B, STAGES as _NS
 
 __all__ = ["NPAR", "NQ", "shoot_batch", "shape_batch"]
 
@@ -47,9 +46,6 @@ NPAR = 7
 NQ = 3
 _NV = 6                      # variational columns: th0, nx0, ny0, m0, L, tau
 _NY = 6 + 6 * _NV + NQ      # full integrated vector length
-
-_A_ = np.ascontiguousarray(_A)
-_B_ = np.ascontiguousarray(_B)
 
 
 @njit(cache=True, inline="always")
@@ -134,22 +130,11 @@ def _integrate(Y, n, L, EI, ce, cs, fx, fy, tau, nvar, nsteps, K, Yt, store, str
             store[0, j] = Y[j]
         row = 1
     for step in range(nsteps):
-        for i in range(_NS):
-            for j in range(n):
-                Yt[j] = Y[j]
-            for l in range(i):
-                a = _A_[i, l]
-                if a != 0.0:
-                    ha = h * a
-                    for j in range(n):
-                        Yt[j] += ha * K[l, j]
+        _rhs(Y, K[0], L, EI, ce, cs, fx, fy, tau, nvar)
+        for i in range(1, _NS):
+            stage_state(i, Y, h, K, Yt, n)
             _rhs(Yt, K[i], L, EI, ce, cs, fx, fy, tau, nvar)
-        for i in range(_NS):
-            bb = _B_[i]
-            if bb != 0.0:
-                hb = h * bb
-                for j in range(n):
-                    Y[j] += hb * K[i, j]
+        advance(Y, h, K, Y, n)
         if stride > 0 and (step + 1) % stride == 0:
             for j in range(store.shape[1]):
                 store[row, j] = Y[j]

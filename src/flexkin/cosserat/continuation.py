@@ -35,7 +35,7 @@ from typing import Callable, Generator
 import numpy as np
 from numpy.typing import NDArray
 
-from ._linalg import det_sign, lu_solve, pivot_ratio
+from ..core.linalg import det_sign, lu_solve, pivot_ratio
 
 __all__ = ["ContinuationOptions", "BranchEnd", "Fold", "branch", "newton_fixed", "run_batched"]
 

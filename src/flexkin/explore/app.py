@@ -28,7 +28,7 @@ from functools import partial
 from typing import Any, Callable
 
 import numpy as np
-from bokeh.events import Pan, PanEnd, PanStart, Tap
+from bokeh.events import DocumentReady, Pan, PanEnd, PanStart, Tap
 from bokeh.layouts import column, row
 from bokeh.models import (ColumnDataSource, DataTable, Div, HoverTool, NumberFormatter, NumericInput,
                           RadioButtonGroup, Range1d, Select, Slider, TableColumn, Toggle)
@@ -50,6 +50,9 @@ EVENT_COLORS = {
 PANEL_WIDTH = 400
 FRAME_MAX = 620
 LOG_LINES = 60
+#: layers whose polylines go to the page as float64 arrays (binary, 1.8x smaller than JSON
+#: number lists, and as exact); short ones (platforms: 3 points) are smaller as JSON
+ROD_LAYERS = ("rods_solid", "rods_dashed", "rods_selected")
 WS_PROGRESS_INTERVAL = 0.25  # s between workspace progress updates
 
 
@@ -69,15 +72,22 @@ class ExplorerApp:
         Used in the export links (``/export/<session_id>/<file>``).
     on_destroy : callable, optional
         Called (with this app) when the session ends.
+    on_ready : callable, optional
+        Called (with this app) when a browser has rendered the page (Bokeh's
+        ``DocumentReady``); :attr:`shown` is then true.  A page fetched without a browser never
+        gets there.
     """
 
     def __init__(self, doc, mech, *, pose=None, load=None, max_mode: int = 2, session_id: str | None = None,
-                 on_destroy: Callable[["ExplorerApp"], None] | None = None) -> None:
+                 on_destroy: Callable[["ExplorerApp"], None] | None = None,
+                 on_ready: Callable[["ExplorerApp"], None] | None = None) -> None:
         self.doc = doc
         self.mech = mech
         self.state = ExplorerState(mech, pose, load=load, max_mode=max_mode)
         self.session_id = session_id or "local"
         self.on_destroy = on_destroy
+        self.on_ready = on_ready
+        self.shown = False  # a browser rendered this session's page
         self.alive = True
         self.cache = ShapeCache()
         self.worker = Worker(on_error=self._error_from_thread)
@@ -98,6 +108,7 @@ class ExplorerApp:
         doc.title = f"flexkin explore: {mech.name}"
         doc.add_root(self.layout)
         doc.on_session_destroyed(self._session_destroyed)
+        doc.on_event(DocumentReady, self._document_ready)
         self._render()
         self._solve_async()
 
@@ -121,6 +132,7 @@ class ExplorerApp:
         self.plot = p
         src = {k: ColumnDataSource(v, name=k) for k, v in empty_scene().items()}
         self.sources = src
+        self._sent: dict[str, dict[str, list]] = dict(empty_scene())  # what the page has, by source name
         self.overlay_src = ColumnDataSource({"image": [], "x": [], "y": [], "dw": [], "dh": []}, name="overlay")
         base = base_layers(mech)
         guides = ColumnDataSource(base["guides"], name="guides")
@@ -247,12 +259,27 @@ class ExplorerApp:
                               for f, t in links)
         return f"<div style='font-size:13px'>Export: {a}</div>"
 
+    def _push(self, source: ColumnDataSource, data: dict[str, list]) -> bool:
+        """Give ``source`` new ``data`` only if it differs from what the page has: Bokeh sends
+        a whole data source to the browser on every assignment, equal or not, so a drag without
+        a selection re-sent every drawn equilibrium with each move (~250 kB per move with 54
+        equilibria).  Returns whether anything was sent."""
+        if self._sent.get(source.name) == data:
+            return False
+        if source.name in ROD_LAYERS:
+            data_out = {k: [np.asarray(v, dtype=float) for v in col] if k in ("xs", "ys") else col
+                        for k, col in data.items()}
+        else:
+            data_out = data
+        source.data = data_out
+        self._sent[source.name] = data
+        return True
+
     def _render(self, table: bool = True) -> None:
-        """Push the state into the document (call on the document's thread)."""
+        """Push what changed in the state into the document (call on the document's thread)."""
         st = self.state
         for name, data in scene(st, self.cache).items():
-            if data.get("xs", data.get("x")) or self.sources[name].data.get("xs", self.sources[name].data.get("x")):
-                self.sources[name].data = data  # (an empty layer that stays empty sends nothing)
+            self._push(self.sources[name], data)
         self._render_status()
         if table:
             self._render_table()
@@ -271,17 +298,23 @@ class ExplorerApp:
     def _render_table(self) -> None:
         st = self.state
         rows = st.rows()
+        picked = [i for i, s in enumerate(rows["selected"]) if s]
+        changed = self._sent.get(self.table_src.name) != rows
+        if not changed and list(self.table_src.selected.indices) == picked:
+            return
         self._syncing = True
         try:
-            # clear the selection first: the browser's table remembers selected rows that a
-            # shorter list hides and restores them when the list grows again (an echo of an
-            # old row index, i.e. of another solution)
-            self.table_src.selected.indices = []
-            # the table redraws when its row count changes; new values in as many rows are
-            # not redrawn (bokeh 3.9, cf. bokeh issue 13859): pass through an empty table
-            self.table_src.data = {k: [] for k in rows}
-            self.table_src.data = rows
-            self.table_src.selected.indices = [i for i, s in enumerate(rows["selected"]) if s]
+            if changed:
+                # clear the selection first: the browser's table remembers selected rows that a
+                # shorter list hides and restores them when the list grows again (an echo of an
+                # old row index, i.e. of another solution)
+                self.table_src.selected.indices = []
+                # the table redraws when its row count changes; new values in as many rows are
+                # not redrawn (bokeh 3.9, cf. bokeh issue 13859): pass through an empty table
+                self.table_src.data = {k: [] for k in rows}
+                self.table_src.data = rows
+                self._sent[self.table_src.name] = rows
+            self.table_src.selected.indices = picked
         finally:
             self._syncing = False
 
@@ -605,6 +638,11 @@ class ExplorerApp:
         self.worker.stop()
         if self.ws_job is not None:
             self.ws_job.cancel()
+
+    def _document_ready(self, event) -> None:
+        self.shown = True
+        if self.on_ready is not None:
+            self.on_ready(self)
 
     def _session_destroyed(self, session_context) -> None:
         self.close()

@@ -39,15 +39,15 @@ def _listed(state: ExplorerState) -> list[Any]:
 
 
 def solutions_json(state: ExplorerState) -> str:
-    """The current solution set as the SPEC §4 JSON object (``res.to_dict()``, with
-    feasibility) of the last full solve; ``{"solutions": []}`` with a message when there is none."""
+    """The current solution set as the SPEC §4 JSON object (``res.to_dict(feasibility=True)``)
+    of the last full solve; ``{"solutions": []}`` with a message when there is none."""
     res = state.result
     if res is None:
         d: dict[str, Any] = {"problem": state.mode, "mechanism": state.mech.name, "load": list(state.load),
                              "max_mode": state.max_mode, "complete": False, "message": state.error,
                              "solutions": []}
     else:
-        d = res.to_dict()
+        d = res.to_dict(feasibility=True)
     return json.dumps(d, indent=2, allow_nan=False)
 
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from flexkin.plot.mechanism import LEG_COLORS
 from flexkin.plot.style import mode_color
+from flexkin.rod.state import centre_lines
 
 from .state import ExplorerState, input_bounds
 
@@ -30,22 +31,36 @@ BASE_COLOR = "#404040"
 
 
 class ShapeCache:
-    """Rod polylines of solutions, computed once per solution object (solutions are immutable)."""
+    """Rod polylines of solutions, computed once per solution object (solutions are immutable),
+    many at a time (:func:`flexkin.rod.state.centre_lines`)."""
 
     def __init__(self, limit: int = 600) -> None:
         self._d: dict[tuple[int, int], tuple[Any, list[np.ndarray]]] = {}
         self.limit = limit
 
-    def shapes(self, sol, n: int) -> list[np.ndarray]:
-        key = (id(sol), n)
-        hit = self._d.get(key)
-        if hit is not None and hit[0] is sol:
-            return hit[1]
-        if len(self._d) >= self.limit:
+    def _hit(self, sol, n: int) -> list[np.ndarray] | None:
+        hit = self._d.get((id(sol), n))
+        return hit[1] if hit is not None and hit[0] is sol else None
+
+    def fill(self, sols, n: int) -> None:
+        """Compute the polylines (``n`` points per rod) of those of ``sols`` not cached yet."""
+        todo = [s for s in sols if self._hit(s, n) is None]
+        if not todo:
+            return
+        if len(self._d) + len(todo) > self.limit:
             self._d.clear()
-        shp = [r.shape(n) for r in sol.rods]
-        self._d[key] = (sol, shp)
-        return shp
+        lines = centre_lines([r for s in todo for r in s.rods], n)
+        k = 0
+        for s in todo:
+            self._d[(id(s), n)] = (s, list(lines[k:k + len(s.rods)]))
+            k += len(s.rods)
+
+    def shapes(self, sol, n: int) -> list[np.ndarray]:
+        hit = self._hit(sol, n)
+        if hit is None:
+            self.fill((sol,), n)
+            hit = self._hit(sol, n)
+        return hit
 
 
 def _layers() -> dict[str, dict[str, list]]:
@@ -79,7 +94,10 @@ def scene(state: ExplorerState, cache: ShapeCache | None = None) -> dict[str, di
         handle_pose = tuple(float(v) for v in state.pose)
     elif state.selected is not None:
         handle_pose = tuple(float(v) for v in state.selected.pose)
-    for sol, sel in state.visible():
+    visible = state.visible()
+    cache.fill([sol for sol, sel in visible if sel], SELECTED_POINTS)
+    cache.fill([sol for sol, sel in visible if not sel], ROD_POINTS)
+    for sol, sel in visible:
         label = sol.mode_label
         if sel:
             for i, xy in enumerate(cache.shapes(sol, SELECTED_POINTS)):

@@ -6,11 +6,20 @@ at ``http://localhost:PORT/`` (bound to localhost by default), and the exports a
 
 * Ctrl-C (SIGINT) or SIGTERM, or
 * the last open tab was closed (its session ends about two seconds later; a reload within
-  :attr:`ExplorerServer.idle_grace` seconds keeps the server), or
+  :attr:`ExplorerServer.idle_grace` seconds keeps the server).  Only a page that a browser
+  rendered counts as a tab (it reports Bokeh's ``DocumentReady``): a page fetched without a
+  browser (curl, a link preview) opens a session that ends unused, and that does not stop the
+  server; or
 * :meth:`ExplorerServer.stop` is called (from any thread),
 
 then stops the background work of every session and closes the listening socket.  Background
 threads are daemons, so no process or thread outlives the command.
+
+**Host check.**  Every request (page, websocket, exports) whose ``Host`` header does not name
+this machine's loopback (``localhost``, ``127.0.0.1``, ``[::1]``) is answered with 403.  A
+page on another site whose name an attacker re-binds to 127.0.0.1 (DNS rebinding) sends its own
+name as ``Host`` and as ``Origin``; without the check it could open sessions (each one runs a
+full solve) and read their exports, since the browser treats it as the same origin.
 """
 
 from __future__ import annotations
@@ -23,7 +32,10 @@ from typing import Any, Callable
 
 from bokeh.application import Application
 from bokeh.application.handlers.function import FunctionHandler
-from bokeh.server.server import Server
+from bokeh.server.server import BaseServer
+from bokeh.server.tornado import BokehTornado
+from bokeh.server.util import bind_sockets, create_hosts_allowlist
+from tornado.httpserver import HTTPServer
 from tornado.ioloop import IOLoop
 from tornado.web import HTTPError, RequestHandler
 
@@ -33,6 +45,17 @@ from .export import EXPORTS, export
 __all__ = ["ExplorerServer", "serve", "DEFAULT_PORT"]
 
 DEFAULT_PORT = 5006
+#: the ``Host`` names the server answers (loopback only; module docstring)
+LOCAL_HOSTS = ("localhost", "127.0.0.1", "[::1]")
+#: tornado host pattern of every other name (matched against the Host header without its port)
+_FOREIGN_HOST = r"(?!(?:localhost|127\.0\.0\.1|\[::1\])$).*"
+
+
+class _ForeignHostHandler(RequestHandler):
+    """Any request with a foreign ``Host`` header: 403 (module docstring)."""
+
+    def prepare(self) -> None:
+        raise HTTPError(403, reason="Forbidden: this explorer answers localhost only")
 
 
 class _ExportHandler(RequestHandler):
@@ -83,28 +106,47 @@ class ExplorerServer:
         self.log = log or (lambda m: print(m, file=sys.stderr, flush=True))
         self.apps: dict[str, ExplorerApp] = {}
         self.sessions_seen = 0
+        self._tab_closed = False  # a browser tab closed and no browser has shown a page since
         self.stop_reason = ""
-        self.server: Server | None = None
+        self.server: BaseServer | None = None
+        self._port = 0
         self.io_loop: IOLoop | None = None
         self._stopped = threading.Event()
 
     # ---- construction -----------------------------------------------------------------------
     def _make_document(self, doc) -> None:
         sid = doc.session_context.id if doc.session_context is not None else "local"
-        app = ExplorerApp(doc, self.mech, session_id=sid, on_destroy=self._app_gone, **self.options)
+        app = ExplorerApp(doc, self.mech, session_id=sid, on_destroy=self._app_gone, on_ready=self._app_ready,
+                          **self.options)
         self.apps[sid] = app
         self.sessions_seen += 1
 
     def start(self) -> "ExplorerServer":
         """Bind the port and prepare the server (on the calling thread's event loop); raises
-        ``OSError`` if the port is taken."""
+        ``OSError`` if the port is taken.
+
+        Assembled from Bokeh's public parts (``BokehTornado``, a tornado ``HTTPServer``,
+        ``BaseServer``) rather than ``bokeh.server.server.Server``, so that the tornado
+        application is ours to give the host check (module docstring) before Bokeh's routes."""
         app = Application(FunctionHandler(self._make_document))
-        self.server = Server(
-            {"/": app}, port=self.requested_port, address=self.address,
-            extra_patterns=[(r"/export/([^/]+)/([A-Za-z0-9_.]+)", _ExportHandler, {"server": self})],
-            unused_session_lifetime_milliseconds=1500, check_unused_sessions_milliseconds=500,
-            keep_alive_milliseconds=10000,
-        )
+        sockets, port = bind_sockets(self.address, self.requested_port)
+        try:
+            web = BokehTornado(
+                {"/": app}, extra_websocket_origins=create_hosts_allowlist(None, port),
+                extra_patterns=[(r"/export/([^/]+)/([A-Za-z0-9_.]+)", _ExportHandler, {"server": self})],
+                unused_session_lifetime_milliseconds=1500, check_unused_sessions_milliseconds=500,
+                keep_alive_milliseconds=10000,
+            )
+            # tornado tries host-specific rules before the catch-all one that holds Bokeh's routes
+            web.add_handlers(_FOREIGN_HOST, [(r".*", _ForeignHostHandler)])
+            http = HTTPServer(web)
+            http.add_sockets(sockets)
+        except Exception:
+            for sock in sockets:
+                sock.close()
+            raise
+        self._port = port
+        self.server = BaseServer(IOLoop.current(), web, http)
         self.server.start()
         self.io_loop = self.server.io_loop
         return self
@@ -112,20 +154,25 @@ class ExplorerServer:
     @property
     def port(self) -> int:
         assert self.server is not None, "start() first"
-        return int(self.server.port)  # type: ignore[arg-type]
+        return self._port
 
     @property
     def url(self) -> str:
         return f"http://localhost:{self.port}/"
 
     # ---- lifetime ---------------------------------------------------------------------------
+    def _app_ready(self, app: ExplorerApp) -> None:
+        self._tab_closed = False
+
     def _app_gone(self, app: ExplorerApp) -> None:
         self.apps.pop(app.session_id, None)
-        if self.exit_when_idle and not self.apps and self.io_loop is not None:
+        if app.shown:
+            self._tab_closed = True
+        if self.exit_when_idle and self._tab_closed and not self.apps and self.io_loop is not None:
             self.io_loop.call_later(self.idle_grace, self._idle_check)
 
     def _idle_check(self) -> None:
-        if not self.apps and self.exit_when_idle:
+        if not self.apps and self.exit_when_idle and self._tab_closed:
             self._shutdown("the last browser tab was closed")
 
     def _shutdown(self, reason: str) -> None:

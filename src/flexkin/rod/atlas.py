@@ -11,16 +11,24 @@ in ``k'`` towards ``|ku| -> 1`` (where the tip force grows like ``log(1/k')**2``
 ``pi/2`` (unloaded straight rod) down to ``-(Q - 1) pi - pi/2`` (end of d-mode Q), and a margin of
 :data:`MODE_MARGIN` cells of d-mode Q + 1 beyond it (so that no search cuts its curves or boxes at
 the last d-mode boundary).
+
+The atlas is computed once (:func:`~flexkin.rod.closed_form.tip_chart`, with
+:mod:`scipy.special`) and kept on disk (:mod:`flexkin.core.cache`, keyed by the source of this
+module and of :mod:`~flexkin.rod.closed_form`), so that an IK in a new process reads it instead
+of importing :mod:`scipy.special` and evaluating 30 000 rods.
 """
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.cache import cached_arrays
 from .closed_form import HALF_PI, tip_chart
 
 __all__ = ["Atlas", "get_atlas", "KPRIME_MIN", "in_scope"]
@@ -116,18 +124,34 @@ class Atlas:
         return -(self.max_mode - 1) * np.pi - HALF_PI
 
 
+_FIELDS = ("x", "y", "theta", "R", "psi", "m0", "energy")
+
+
+def _source_key() -> str:
+    """Fingerprint of the code that computes an atlas (this module and the closed form)."""
+    h = hashlib.sha256()
+    for f in (Path(__file__), Path(__file__).with_name("closed_form.py")):
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
 @lru_cache(maxsize=8)
 def get_atlas(max_mode: int) -> Atlas:
-    """Atlas of all rods with d-mode <= ``max_mode`` (cached per process)."""
+    """Atlas of all rods with d-mode <= ``max_mode`` (cached per process and on disk)."""
     if max_mode < 1:
         raise ValueError(f"max_mode must be >= 1, got {max_mode}")
     v = _v_nodes()
     phis = _phis_nodes(max_mode)
-    V, PH = np.meshgrid(v, phis, indexing="ij")
-    t = tip_chart(V, PH)
+
+    def build() -> dict[str, NDArray]:
+        V, PH = np.meshgrid(v, phis, indexing="ij")
+        t = tip_chart(V, PH)
+        return {name: np.ascontiguousarray(getattr(t, name), dtype=float) for name in _FIELDS}
+
+    got = cached_arrays("pinned-atlas", (max_mode, v.size, phis.size, _source_key()), build)
     arrays = {}
-    for name in ("x", "y", "theta", "R", "psi", "m0", "energy"):
-        a = np.ascontiguousarray(getattr(t, name))
+    for name in _FIELDS:
+        a = np.ascontiguousarray(got[name], dtype=float)
         a.setflags(write=False)
         arrays[name] = a
     return Atlas(max_mode=max_mode, v=v, ku=np.tanh(v), phis=phis, **arrays)

@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import ellipe, ellipeinc, ellipj, ellipk, ellipkinc, elliprd, elliprf
 
 __all__ = [
     "ellipf",
@@ -63,6 +62,15 @@ __all__ = [
 HALF_PI = 0.5 * np.pi
 
 
+def _special():
+    """:mod:`scipy.special` (``m = k**2``), imported on first use: the solvers evaluate rods with
+    their compiled elliptic functions (:mod:`flexkin.rod.elliptic`), so an IK or FK call never
+    needs it (the pinned atlas they start from is cached on disk, :mod:`flexkin.rod.atlas`)."""
+    import scipy.special
+
+    return scipy.special
+
+
 # ----------------------------------------------------------------------------------------
 # Elliptic integrals for any real amplitude (scipy uses the parameter m = k**2)
 # ----------------------------------------------------------------------------------------
@@ -75,8 +83,8 @@ def ellipf(phi: ArrayLike, m: ArrayLike) -> NDArray[np.float64]:
     phi = np.asarray(phi, dtype=float)
     n = np.round(phi / np.pi)
     red = phi - n * np.pi
-    out = ellipkinc(red, m)
-    return np.where(n != 0, out + 2.0 * n * ellipk(m), out)
+    out = _special().ellipkinc(red, m)
+    return np.where(n != 0, out + 2.0 * n * _special().ellipk(m), out)
 
 
 def ellipe_inc(phi: ArrayLike, m: ArrayLike) -> NDArray[np.float64]:
@@ -84,8 +92,8 @@ def ellipe_inc(phi: ArrayLike, m: ArrayLike) -> NDArray[np.float64]:
     phi = np.asarray(phi, dtype=float)
     n = np.round(phi / np.pi)
     red = phi - n * np.pi
-    out = ellipeinc(red, m)
-    return np.where(n != 0, out + 2.0 * n * ellipe(m), out)
+    out = _special().ellipeinc(red, m)
+    return np.where(n != 0, out + 2.0 * n * _special().ellipe(m), out)
 
 
 # ----------------------------------------------------------------------------------------
@@ -196,12 +204,12 @@ def _carlson_fe(phi: NDArray[np.float64], m: NDArray[np.float64], kp2: NDArray[n
     s, c = np.sin(r), np.cos(r)
     c2, s2 = c * c, s * s
     d2 = c2 + kp2 * s2
-    rf = elliprf(c2, d2, 1.0)
-    rd = elliprd(c2, d2, 1.0)
+    rf = _special().elliprf(c2, d2, 1.0)
+    rd = _special().elliprd(c2, d2, 1.0)
     F = s * rf
     E = s * rf - (m / 3.0) * s * s2 * rd
-    Kc = elliprf(0.0, kp2, 1.0)
-    Ec = Kc - (m / 3.0) * elliprd(0.0, kp2, 1.0)
+    Kc = _special().elliprf(0.0, kp2, 1.0)
+    Ec = Kc - (m / 3.0) * _special().elliprd(0.0, kp2, 1.0)
     return F + 2.0 * n * Kc, E + 2.0 * n * Ec, Kc, Ec
 
 
@@ -306,7 +314,7 @@ def rod_shape(
     F1, E1, _, _ = _carlson_fe(np.array(phis), m, kp2)
     F1, E1 = float(F1), float(E1)
     u = F1 + Phi * s / L
-    phi = ellipj(u, m)[3]
+    phi = _special().ellipj(u, m)[3]
     phi[0] = phis
     for _ in range(8):  # Newton on F(phi) = u, dF/dphi = 1/Delta
         Fp, _, _, _ = _carlson_fe(phi, m, kp2)
@@ -359,7 +367,7 @@ def tangent_angles(v: ArrayLike, phis: ArrayLike, s: ArrayLike) -> NDArray[np.fl
     F1, _, Kc, _ = _carlson_fe(phis, m, kp2)
     Phi = np.maximum(Kc - F1, 0.0)
     u = F1 + Phi * s
-    phi = ellipj(u, np.broadcast_to(m, u.shape))[3]
+    phi = _special().ellipj(u, np.broadcast_to(m, u.shape))[3]
     # scipy's ellipj loses accuracy as k' -> 0 (it sees only m = k^2): polish those rods
     near = np.flatnonzero(kp2[:, 0] < 1e-6)
     if near.size:
@@ -425,9 +433,9 @@ def tip_seam(psi_s: ArrayLike, chi: ArrayLike) -> RodTipArrays:
     kp2 = kp * kp
     s, c = np.sin(chi), np.cos(chi)
     d2 = c * c + kp2 * s * s
-    rf = elliprf(c * c, d2, 1.0)
+    rf = _special().elliprf(c * c, d2, 1.0)
     Phi = s * rf                                                          # F(chi | m)
-    Echi = s * rf - (m / 3.0) * s ** 3 * elliprd(c * c, d2, 1.0)          # E(chi | m)
+    Echi = s * rf - (m / 3.0) * s ** 3 * _special().elliprd(c * c, d2, 1.0)          # E(chi | m)
     DE = Echi - m * np.cos(eps) * s
     cpsi2 = sgn * ch                    # cos(psi/2) with psi in [0, 2 pi]
     cpsi, spsi = 2.0 * cpsi2 * cpsi2 - 1.0, 2.0 * cpsi2 * sh

@@ -44,7 +44,7 @@ from .wrench import wrench_eval, wrench_profile
 __all__ = [
     "NQ", "X", "Y", "TH", "FX", "FY", "M0", "ML", "EN", "PHI",
     "CHART_UNIFIED", "CHART_SEAM", "CHART_WRENCH", "CHART_DIM",
-    "unified_eval", "seam_eval", "eval_rod", "project", "V_MAX", "eval_rods", "profile", "tangents",
+    "unified_eval", "seam_eval", "eval_rod", "project", "V_MAX", "eval_rods", "profile", "profile_batch", "tangents",
 ]
 
 
@@ -307,6 +307,13 @@ def profile(chart: int, z: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
         unified_profile(z[0], z[1], s, out)
     else:
         wrench_profile(z[0], z[1], z[2], s, out)
+
+
+@njit(cache=True)
+def profile_batch(charts: np.ndarray, z: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
+    """:func:`profile` of many unit rods: ``out[i] = profile(charts[i], z[i], s)``."""
+    for i in range(charts.shape[0]):
+        profile(charts[i], z[i], s, out[i])
 
 
 @njit

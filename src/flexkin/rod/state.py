@@ -3,16 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..core.geometry2d import rot2, rotate
 from .closed_form import SEAM_OFFSET, is_seam, mode_of, standard_chart, to_paper
-from .kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, EN, FX, FY, M0, ML, NQ, TH, X, Y, eval_rods, profile
+from .kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, EN, FX, FY, M0, ML, NQ, TH, X, Y, eval_rods, profile_batch
 
-__all__ = ["RodState", "rot"]
+__all__ = ["RodState", "rot", "profiles", "centre_lines"]
 
 #: kept for callers of the former helper; the one rotation is :func:`flexkin.core.geometry2d.rot2`
 rot = rot2
@@ -146,23 +146,11 @@ class RodState:
     def profile(self, n: int = 101) -> dict[str, NDArray[np.float64]]:
         """The rod sampled at ``n`` points uniformly in arc length: ``s`` (m), ``x``, ``y``
         (world, m), ``theta`` (rad, world), ``moment`` (N m)."""
-        s = np.linspace(0.0, 1.0, n)
-        out = np.empty((n, 4))
-        z = np.zeros(3)
-        z[:len(self.coords)] = self.coords
-        if self.chart == CHART_SEAM:
-            z[:2] = _unified(CHART_SEAM, z[0], z[1])
-            profile(CHART_UNIFIED, z, s, out)
-        else:
-            profile(self.chart, z, s, out)
-        pts = self.length * rotate(out[:, :2], self.clamp_angle) + np.asarray(self.clamp)
-        return {"s": s * self.length, "x": pts[:, 0], "y": pts[:, 1], "theta": out[:, 2] + self.clamp_angle,
-                "moment": out[:, 3] * self.EI / self.length}
+        return {k: v[0] for k, v in profiles((self,), n).items()}
 
     def shape(self, n: int = 101) -> NDArray[np.float64]:
         """Deformed centre line in the world frame, shape ``(n, 2)``."""
-        p = self.profile(n)
-        return np.stack([p["x"], p["y"]], -1)
+        return centre_lines((self,), n)[0]
 
     def curvature(self, n: int = 201) -> NDArray[np.float64]:
         """Curvature ``theta'(s)`` at ``n`` points uniformly spaced in arc length (1/m)."""
@@ -180,3 +168,69 @@ class RodState:
             "energy": self.energy,
             "mode_boundary": self.mode_boundary,
         }
+
+
+# ---------------------------------------------------------------------------------------------
+def _unit_profiles(rods: Sequence[RodState], s: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``(x, y, theta, m)`` of each rod's unit rod (local frame) at arc lengths ``s``: (m, n, 4)."""
+    m = len(rods)
+    out = np.empty((m, s.size, 4))
+    if m == 0:
+        return out
+    ch = np.array([r.chart for r in rods], dtype=np.int64)
+    z = np.zeros((m, 3))
+    for i, r in enumerate(rods):
+        z[i, :len(r.coords)] = r.coords
+    seam = ch == CHART_SEAM
+    if np.any(seam):  # profiles are evaluated in the unified chart (see _unified)
+        z1 = np.where(is_seam(z[seam, 1]), z[seam, 1], z[seam, 1] + SEAM_OFFSET)
+        z[seam, 0], z[seam, 1] = standard_chart(z[seam, 0], z1)
+        ch[seam] = CHART_UNIFIED
+    profile_batch(ch, z, s, out)
+    return out
+
+
+def profiles(rods: Sequence[RodState], n: int = 101) -> dict[str, NDArray[np.float64]]:
+    """:meth:`RodState.profile` of many rods at once: ``s``, ``x``, ``y``, ``theta``, ``moment``,
+    each of shape ``(len(rods), n)`` (the charts and placements batched, one compiled profile
+    per rod).
+
+    Parameters
+    ----------
+    rods : sequence of RodState
+        The rods.
+    n : int, optional
+        Points per rod, uniform in arc length.
+
+    Returns
+    -------
+    dict of ndarray
+    """
+    s = np.linspace(0.0, 1.0, n)
+    u = _unit_profiles(rods, s)
+    L = np.array([r.length for r in rods], dtype=float).reshape(-1, 1)
+    a = np.array([r.clamp_angle for r in rods], dtype=float).reshape(-1, 1)
+    c = np.array([r.clamp for r in rods], dtype=float).reshape(-1, 2)
+    EI = np.array([r.EI for r in rods], dtype=float).reshape(-1, 1)
+    ca, sa = np.cos(a), np.sin(a)
+    x = L * (ca * u[..., 0] - sa * u[..., 1]) + c[:, :1]
+    y = L * (sa * u[..., 0] + ca * u[..., 1]) + c[:, 1:]
+    return {"s": s[None, :] * L, "x": x, "y": y, "theta": u[..., 2] + a, "moment": u[..., 3] * EI / L}
+
+
+def centre_lines(rods: Sequence[RodState], n: int = 101) -> NDArray[np.float64]:
+    """:meth:`RodState.shape` of many rods at once: ``(len(rods), n, 2)`` (world, m).
+
+    Parameters
+    ----------
+    rods : sequence of RodState
+        The rods.
+    n : int, optional
+        Points per rod, uniform in arc length.
+
+    Returns
+    -------
+    ndarray
+    """
+    p = profiles(rods, n)
+    return np.stack([p["x"], p["y"]], -1)

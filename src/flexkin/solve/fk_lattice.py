@@ -51,8 +51,6 @@ from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from ..core.jit import njit
 from ..core.linalg import solve_into
@@ -616,6 +614,9 @@ def _leg_sheet(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat:
                 "G": np.zeros((0, 3, 3)), "sheet": np.zeros(0, np.int64)}, complete, (leg, chart, dim)
     out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     e = np.concatenate(edges) if edges else np.zeros((0, 2), np.int64)
+    from scipy.sparse import coo_matrix   # imported here: only a clamped FK needs it
+    from scipy.sparse.csgraph import connected_components
+
     graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(total, total))
     out["sheet"] = connected_components(graph, directed=False)[1].astype(np.int64)
     order = np.argsort(out["keys"], kind="stable")

@@ -10,10 +10,29 @@ metrics, :mod:`.run` the execution on Dask, :mod:`.table` the files written.  Da
 matplotlib are imported only when a study runs.
 """
 
-from .evaluate import METRICS, DesignTask, evaluate_design
-from .run import SYNCHRONOUS, StudyAborted, StudyInterrupted, StudyResult, run_study
-from .spec import StudyError, StudySpec, load_study, study_from_dict
-from .table import read_table
+from __future__ import annotations
+
+from typing import Any
 
 __all__ = ["run_study", "StudyResult", "StudySpec", "StudyError", "StudyAborted", "StudyInterrupted", "load_study",
            "study_from_dict", "read_table", "evaluate_design", "DesignTask", "METRICS", "SYNCHRONOUS"]
+
+#: public name -> submodule, resolved on first use (PEP 562): ``flexkin``'s command line imports
+#: :mod:`.cli` for its parser without loading the study machinery
+_LAZY = {"run_study": "run", "StudyResult": "run", "SYNCHRONOUS": "run", "StudyAborted": "run",
+         "StudyInterrupted": "run", "StudySpec": "spec", "StudyError": "spec", "load_study": "spec", "study_from_dict": "spec", "read_table": "table", "evaluate_design": "evaluate",
+         "DesignTask": "evaluate", "METRICS": "evaluate"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
