@@ -386,7 +386,7 @@ def test_cosserat_model_keeps_the_sag_out_of_the_geometry(examples_dir):
     (the independent discrete-beam oracle, Richardson-extrapolated) with true input offsets and no
     noise, the Cosserat fit recovers the offsets; the weightless Kirchhoff fit absorbs the sag into
     wrong offsets, by several of its own standard errors."""
-    from flexkin.io.material import cosserat_setup
+    from flexkin.cosserat.params import cosserat_setup
 
     from calibration_truth import cosserat_fk_truth
 

@@ -748,7 +748,7 @@ density = 7850
 
 
 def test_cosserat_keys_validated_and_resolved_per_leg(tmp_path):
-    from flexkin.io.material import cosserat_setup, leg_materials
+    from flexkin.cosserat.params import cosserat_setup, leg_materials
 
     text = _sub("[rod]\nlength = 1.0\nE = 68e9\nradius = 1.5e-3\n", COSSERAT_KEYS.lstrip("\n"))
     text = _sub("angle = 120.0", "angle = 120.0\nG = 7e10\nshear_coefficient = 0.8\ndensity = 6450", text)

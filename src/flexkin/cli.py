@@ -574,7 +574,7 @@ def _kinematics(a, mech):
 
 def _cosserat_setup(a, mech):
     """Per-leg Cosserat parameters and gravity (checked before any work)."""
-    from .io.material import cosserat_setup
+    from .cosserat.params import cosserat_setup
 
     try:
         params, gravity = cosserat_setup(mech, a.gravity)

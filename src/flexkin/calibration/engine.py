@@ -345,7 +345,7 @@ class Model:
         poses (FK rows) or inputs (IK rows); None where the refinement does not reach one (a fold).
         Rows with the same problem and load are refined in one batch."""
         from ..cosserat import refine
-        from ..io.material import cosserat_setup
+        from ..cosserat.params import cosserat_setup
 
         mech = self.mech_at(theta)
         params, grav = cosserat_setup(mech)

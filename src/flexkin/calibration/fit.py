@@ -278,7 +278,7 @@ def calibrate(mech: Mechanism | str | os.PathLike[str], data: Measurements | str
     m0, raw, meas = _load_inputs(mech, data)
     params = parse_fit_keys(list(fit), m0, raw)
     if model == "cosserat":
-        from ..io.material import cosserat_setup
+        from ..cosserat.params import cosserat_setup
 
         cosserat_setup(m0)  # E and radius on every rod, else a ValueError naming the leg
         bad = [p.name for p in params if p.prop == "EI"]

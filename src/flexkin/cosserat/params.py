@@ -13,7 +13,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["CosseratParams", "circular_shear_coefficient", "params_for_mechanism", "line_loads"]
+from ..mechanism.loader import MATERIAL_KEYS  # the rods' material keys beyond E and radius
+
+__all__ = ["CosseratParams", "circular_shear_coefficient", "params_for_mechanism", "cosserat_setup", "leg_materials",
+           "line_loads"]
 
 
 def circular_shear_coefficient(poisson: float | None) -> float:
@@ -163,23 +166,46 @@ class CosseratParams:
                 self.mass_per_length * g[1] + self.distributed_load[1])
 
 
+def leg_materials(mech: Any) -> list[dict[str, float]]:
+    """Per leg, the material keys its file gives (``[rod]`` defaults and the leg's overrides,
+    resolved by the loader into ``Rod.G``, ``Rod.poisson``, ``Rod.density``,
+    ``Rod.shear_coefficient``).
+
+    Parameters
+    ----------
+    mech : Mechanism
+        The mechanism.
+
+    Returns
+    -------
+    list of dict
+        Per leg, ``G``, ``poisson``, ``density``, ``shear_coefficient`` where given.
+    """
+    return [{k: getattr(leg.rod, k) for k in MATERIAL_KEYS if getattr(leg.rod, k, None) is not None}
+            for leg in mech.legs]
+
+
 def params_for_mechanism(mech: Any, *, G: float | None = None, poisson: float | None = None,
-                         density: float = 0.0, shear_coefficient: float | None = None,
+                         density: float | None = None, shear_coefficient: float | None = None,
                          distributed_load: Sequence[float] = (0.0, 0.0)) -> tuple[CosseratParams, ...]:
-    """One :class:`CosseratParams` per leg from each rod's ``E`` and ``radius``.
+    """One :class:`CosseratParams` per leg from each rod's ``E``, ``radius`` and the material
+    keys of the mechanism file (:func:`leg_materials`); an argument given here overrides the
+    file's value for every rod.
 
     Parameters
     ----------
     mech : Mechanism
         The mechanism; every rod needs ``E`` and ``radius``.
     G : float, optional
-        Shear modulus (Pa) for every rod; default from ``poisson``.
+        Shear modulus (Pa) for every rod; default the file's, else from ``poisson``.
     poisson : float, optional
-        Poisson's ratio, used for ``G = E / (2 (1 + nu))`` and the shear coefficient.
+        Poisson's ratio, used for ``G = E / (2 (1 + nu))`` and the shear coefficient; default
+        the file's.
     density : float, optional
-        Mass density (kg/m^3); 0 = weightless.
+        Mass density (kg/m^3) for every rod; default the file's, else 0 (weightless).
     shear_coefficient : float, optional
-        Timoshenko shear coefficient kappa; default :func:`circular_shear_coefficient`.
+        Timoshenko shear coefficient kappa; default the file's, else
+        :func:`circular_shear_coefficient`.
     distributed_load : (2,) float, optional
         Extra dead load per unit length (N/m, world frame) on every rod.
 
@@ -193,16 +219,42 @@ def params_for_mechanism(mech: Any, *, G: float | None = None, poisson: float | 
     ValueError
         Naming the leg if a rod lacks ``E`` or ``radius``.
     """
+    given = {"G": G, "poisson": poisson, "density": density, "shear_coefficient": shear_coefficient}
     out = []
-    for i, leg in enumerate(mech.legs):
-        E = getattr(leg.rod, "E", None)
-        r = getattr(leg.rod, "radius", None)
-        if E is None or r is None:
-            raise ValueError(f"leg[{i + 1}].rod: E and radius are needed for the Cosserat parameters")
-        out.append(CosseratParams.from_material(E, r, G=G, poisson=poisson, density=density,
-                                                shear_coefficient=shear_coefficient,
+    for i, (leg, mat) in enumerate(zip(mech.legs, leg_materials(mech))):
+        if leg.rod.E is None or leg.rod.radius is None:
+            raise ValueError(f"leg[{i + 1}]: the Cosserat model needs E and radius for every rod (give them in "
+                             "[rod] or the [[leg]]; EI alone has no extension or shear stiffness)")
+        if G is not None or poisson is not None:  # the caller's shear data replace the file's
+            mat = {k: v for k, v in mat.items() if k not in ("G", "poisson")}
+        m = {**mat, **{k: v for k, v in given.items() if v is not None}}
+        out.append(CosseratParams.from_material(leg.rod.E, leg.rod.radius, G=m.get("G"), poisson=m.get("poisson"),
+                                                density=m.get("density", 0.0),
+                                                shear_coefficient=m.get("shear_coefficient"),
                                                 distributed_load=distributed_load))
     return tuple(out)
+
+
+def cosserat_setup(mech: Any, gravity: Sequence[float] | None = None
+                   ) -> tuple[tuple[CosseratParams, ...], tuple[float, float] | None]:
+    """The Cosserat parameters of a mechanism file (:func:`params_for_mechanism`) and its gravity
+    (``gravity`` if given, else the file's ``[environment] gravity``).
+
+    Parameters
+    ----------
+    mech : Mechanism
+        The mechanism; every rod needs ``E`` and ``radius``.
+    gravity : (gx, gy), optional
+        In-plane gravity (m/s^2); default :attr:`Mechanism.gravity`.
+
+    Returns
+    -------
+    params : tuple of CosseratParams
+        One per leg.
+    gravity : (gx, gy) or None
+    """
+    g = mech.gravity if gravity is None else (float(gravity[0]), float(gravity[1]))
+    return params_for_mechanism(mech), g
 
 
 def line_loads(params: Sequence[CosseratParams], gravity: Sequence[float] | None,

@@ -1,9 +1,9 @@
-"""User-facing input/output: rod shapes as CSV / NPZ, Cosserat material data read from
-mechanism files, progress bars for the command line.
+"""User-facing input/output: rod shapes as CSV / NPZ, measurement files, HTML reports,
+progress bars for the command line.
 
 * :mod:`~flexkin.io.shapes` — :func:`write_shapes` (``--shapes FILE.csv|FILE.npz``).
-* :mod:`~flexkin.io.material` — :func:`~flexkin.io.material.cosserat_setup` (Cosserat
-  parameters and gravity of a mechanism).
+* :mod:`~flexkin.io.measurements` — the calibration's measurement CSV.
+* :mod:`~flexkin.io.html_report` — a report's Markdown as one HTML page.
 * :mod:`~flexkin.io.progress` — :func:`~flexkin.io.progress.progress_wanted`,
   :class:`~flexkin.io.progress.Ticker`.
 """
