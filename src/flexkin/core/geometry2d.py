@@ -80,10 +80,4 @@ def cross2(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
-def polygon_area(points: ArrayLike) -> float:
-    """Signed area of a polygon (counter-clockwise positive)."""
-    p = np.asarray(points, dtype=float)
-    return 0.5 * float(np.sum(cross2(p, np.roll(p, -1, axis=0))))
-
-
 TWO_PI = 2.0 * math.pi

@@ -24,7 +24,6 @@ full solve) and read their exports, since the browser treats it as the same orig
 
 from __future__ import annotations
 
-import asyncio
 import signal
 import sys
 import threading
@@ -215,29 +214,6 @@ class ExplorerServer:
                 signal.signal(sig, h)
             self._shutdown(self.stop_reason or "stopped")
         return self.stop_reason
-
-
-def serve_in_thread(mech, **kwargs: Any) -> ExplorerServer:
-    """Start an :class:`ExplorerServer` on its own event loop in a daemon thread (tests,
-    benchmarks); returns once it listens.  Stop it with ``.stop()``."""
-    box: dict[str, Any] = {}
-    ready = threading.Event()
-
-    def target() -> None:
-        asyncio.set_event_loop(asyncio.new_event_loop())
-        try:
-            srv = ExplorerServer(mech, **kwargs).start()
-        except BaseException as e:  # noqa: BLE001
-            box["error"] = e
-            ready.set()
-            return
-        box["server"] = srv
-        srv.run(on_ready=ready.set)
-
-    threading.Thread(target=target, name="flexkin-explore-server", daemon=True).start()
-    if not ready.wait(60) or "error" in box:
-        raise box.get("error") or RuntimeError("the explorer server did not start")
-    return box["server"]
 
 
 def serve(mech, *, port: int | None = None, open_browser: bool = True, pose=None, load=None, max_mode: int = 2,

@@ -481,21 +481,6 @@ def chart_to_seam(v: ArrayLike, phis: ArrayLike) -> tuple[NDArray[np.float64], N
     return psi_s, chi
 
 
-def tip_any(z0: ArrayLike, z1: ArrayLike) -> RodTipArrays:
-    """Tip quantities for chart pairs in either chart (:func:`tip_chart` or :func:`tip_seam`)."""
-    z0 = np.asarray(z0, dtype=float)
-    z1 = np.asarray(z1, dtype=float)
-    seam = is_seam(z1)
-    if not np.any(seam):
-        return tip_chart(z0, z1)
-    if np.all(seam):
-        return tip_seam(z0, z1 - SEAM_OFFSET)
-    a = tip_chart(np.where(seam, 0.0, z0), np.where(seam, 0.0, z1))
-    b = tip_seam(np.where(seam, z0, 0.0), np.where(seam, z1 - SEAM_OFFSET, 0.5))
-    pick = [np.where(seam, getattr(b, k), getattr(a, k)) for k in ("x", "y", "theta", "R", "psi", "m0", "energy", "Phi")]
-    return RodTipArrays(*pick)
-
-
 def standard_chart(z0: ArrayLike, z1: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Chart pairs in the solvers' chart ``(v, phis)`` whatever chart they are stored in."""
     z0 = np.asarray(z0, dtype=float)

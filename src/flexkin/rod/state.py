@@ -8,14 +8,13 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core.geometry2d import rot2, rotate
+from ..core.geometry2d import rotate
 from .closed_form import SEAM_OFFSET, is_seam, mode_of, standard_chart, to_paper
 from .kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, EN, FX, FY, M0, ML, NQ, TH, X, Y, eval_rods, profile_batch
 
-__all__ = ["RodState", "rot", "profiles", "centre_lines"]
+__all__ = ["RodState", "profiles", "centre_lines"]
 
 #: kept for callers of the former helper; the one rotation is :func:`flexkin.core.geometry2d.rot2`
-rot = rot2
 
 
 def _unified(chart: int, z0: float, z1: float) -> tuple[float, float]:
