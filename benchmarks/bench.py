@@ -245,19 +245,16 @@ def extra_rows(rep: int, rows: list[Row], ctx: dict, quick: bool) -> None:
     else:
         rows.append(Row("verification of the 88 prototype IK solutions", [], note="skipped: no flexkin.analysis.verify"))
     # explorer responsiveness
-    if importlib.util.find_spec("flexkin.explore.bench") is not None:
-        from flexkin.explore.bench import responsiveness
+    from explore_responsiveness import TARGET_REFRESH_MS, TARGET_TRACK_MS, responsiveness
 
-        r = responsiveness(PROTO, moves=max(20, 10 * rep), refreshes=max(3, rep))
-        for key, label, target in (("track", "explorer: tracked drag (one move, server side)", 0.050),
-                                   ("refresh", "explorer: full refresh on release (server side)", 0.200)):
-            m = r[key]["median_ms"] / 1e3
-            note = f"median of {r[key]['n']}, p90 {r[key]['p90_ms']:.0f} ms, max {r[key]['max_ms']:.0f} ms"
-            if key == "refresh":
-                note += f", of which flexkin.ik {r.get('refresh_solver_median_ms', float('nan')):.0f} ms"
-            rows.append(Row(label, [m], [], target, note=note, extra={"responsiveness": r[key]}))
-    else:
-        rows.append(Row("explorer responsiveness", [], note="skipped: no flexkin.explore.bench"))
+    r = responsiveness(PROTO, moves=max(20, 10 * rep), refreshes=max(3, rep))
+    for key, label, target in (("track", "explorer: tracked drag (one move, server side)", TARGET_TRACK_MS / 1e3),
+                               ("refresh", "explorer: full refresh on release (server side)", TARGET_REFRESH_MS / 1e3)):
+        m = r[key]["median_ms"] / 1e3
+        note = f"median of {r[key]['n']}, p90 {r[key]['p90_ms']:.0f} ms, max {r[key]['max_ms']:.0f} ms"
+        if key == "refresh":
+            note += f", of which flexkin.ik {r.get('refresh_solver_median_ms', float('nan')):.0f} ms"
+        rows.append(Row(label, [m], [], target, note=note, extra={"responsiveness": r[key]}))
     # Cosserat refinement of the 88 IK solutions
     if not quick:
         from flexkin.cosserat import CosseratParams, params_for_mechanism, refine

@@ -15,7 +15,6 @@ import re
 
 import pytest
 
-import flexkin
 
 #: the packages whose ``__all__`` is the documented user API (internal modules -- kernels,
 #: layouts, continuation internals -- are documented in their module headers instead)

@@ -10,6 +10,7 @@ import csv
 import io
 import json
 import math
+import sys
 import threading
 import time
 from pathlib import Path
@@ -424,7 +425,8 @@ def test_cli_parser_wiring():
 
 
 def test_responsiveness_bench_smoke():
-    from flexkin.explore.bench import responsiveness
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from explore_responsiveness import responsiveness
 
     r = responsiveness(PROTO, moves=6, refreshes=1)
     assert r["track"]["n"] == 6 and r["refresh"]["n"] == 1 and r["n_solutions"] > 0

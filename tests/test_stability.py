@@ -14,7 +14,7 @@ from scipy.optimize import brentq
 from scipy.special import ellipk
 
 import flexkin
-from flexkin.analysis.stability import mechanism_stability, output_stiffness, rod_stability
+from flexkin.analysis.stability import output_stiffness, rod_stability
 from flexkin.system import System
 from flexkin.rod.closed_form import tip_chart
 from flexkin.rod.inverse import refine_rod

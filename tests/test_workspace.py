@@ -6,14 +6,12 @@ from __future__ import annotations
 import json
 import os
 import sys
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 import flexkin
 from flexkin import follow_path
-from flexkin.analysis.stability import mechanism_stability
 from flexkin.solve.workspace import REACHED, load_workspace, workspace
 
 sys.path.insert(0, os.path.dirname(__file__))

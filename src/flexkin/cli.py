@@ -801,12 +801,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .errors import FlexkinWarning
 
     os.environ.setdefault("MPLBACKEND", "Agg")  # figures are files; matplotlib is imported only to draw one
-    parser = _build_parser()
     with warnings.catch_warnings():
         warnings.simplefilter("always", FlexkinWarning)
         warnings.showwarning = _show_warning
         try:
-            a = parser.parse_args(argv)
+            a = _build_parser().parse_args(argv)
             _check_outputs(a)
             _check_angles(a)
             handler = {"show": _cmd_show, "rod": _cmd_rod, "ik": _cmd_kinematics, "fk": _cmd_kinematics,

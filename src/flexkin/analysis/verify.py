@@ -55,7 +55,6 @@ dimensionless unknowns of :func:`~flexkin.analysis.jacobian.system_blocks`; with
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,7 +68,7 @@ from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, profile
 from ..system import System
 from .jacobian import system_blocks
 
-__all__ = ["Verification", "verify_solutions", "newton_condition", "integrate_rod", "verify_cost",
+__all__ = ["Verification", "verify_solutions", "newton_condition", "integrate_rod",
            "VERIFY_TOL", "RTOL", "ATOL", "MOMENT_RTOL"]
 
 #: a solution is verified when every scaled residual of the check is at most this
@@ -448,47 +447,3 @@ def _residuals(system: System, X: NDArray, load: NDArray, w: dict[str, NDArray],
         np.abs(np.sum(w["force"], axis=1) - load[:2]) / system.F_ref,  # platform equilibrium (Eq. 15)
         np.abs(moment - load[2])[:, None] / Mref,
     ], axis=1)
-
-
-# ---------------------------------------------------------------------------------------------
-def verify_cost(repeat: int = 3, mechanism: str | None = None,
-                pose: tuple[float, float, float] = (0.0, 0.0, math.pi / 2)) -> dict[str, float]:
-    """Cost of the verification of all IK solutions at a pose (for ``benchmarks/bench.py``).
-
-    Parameters
-    ----------
-    repeat : int, optional
-        Timed repetitions (the best is reported).
-    mechanism : str, optional
-        Mechanism file; default the repository's ``examples/prototype_3pfr.toml``.
-    pose : tuple of float, optional
-        ``(x, y, theta)`` (m, m, rad); default (0, 0, 90 deg).
-
-    Returns
-    -------
-    dict
-        ``solutions``, ``verify_s`` (seconds to verify all of them, condition numbers
-        included), ``per_solution_ms``, ``ik_s`` (one IK call, verification included) and
-        ``unverified`` (count).
-    """
-    from pathlib import Path
-
-    import flexkin
-
-    if mechanism is None:
-        mechanism = str(Path(flexkin.__file__).resolve().parents[2] / "examples" / "prototype_3pfr.toml")
-    mech = flexkin.load_mechanism(mechanism)
-    t0 = time.perf_counter()
-    res = flexkin.ik(mech, pose)
-    t_ik = time.perf_counter() - t0
-    system = System.from_mechanism(mech)
-    X = np.array([s.x for s in res.solutions])
-    ch = np.array([s.charts for s in res.solutions])
-    modes = np.array([s.modes for s in res.solutions])
-    best = np.inf
-    for _ in range(max(1, int(repeat))):
-        t0 = time.perf_counter()
-        v = verify_solutions(system, X, ch, np.asarray(res.load), modes)
-        best = min(best, time.perf_counter() - t0)
-    return {"solutions": float(len(X)), "verify_s": best, "per_solution_ms": 1e3 * best / max(1, len(X)),
-            "ik_s": t_ik, "unverified": float(np.sum(~v.verified))}

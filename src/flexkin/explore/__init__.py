@@ -13,7 +13,6 @@ browser and without the web library installed:
 * :mod:`~flexkin.explore.server` -- start / stop of the Bokeh server, export downloads,
   exit when the last tab closes or on Ctrl-C;
 * :mod:`~flexkin.explore.cli` -- ``flexkin explore MECH.toml [--port P] [--no-browser]``;
-* :mod:`~flexkin.explore.bench` -- :func:`~flexkin.explore.bench.responsiveness`.
 
 Only :mod:`~flexkin.explore.app` and :mod:`~flexkin.explore.server` import Bokeh.
 """

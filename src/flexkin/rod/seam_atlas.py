@@ -26,15 +26,17 @@ of width ``L / (lambda L)``), so taut rods of moderate tension are in scope.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import ellipk
-
-from .atlas import KPRIME_MIN, Atlas
+from ..core.cache import cached_arrays
+from .atlas import KPRIME_MIN, Atlas, _source_key
 from .closed_form import HALF_PI, tip_seam
+from .elliptic import complete
 
 __all__ = ["SeamAtlas", "get_seam_atlas", "unified_corner", "PSI_IN", "PSI_OUT", "T_MAX", "LAMBDA_SCOPE",
            "seam_in_scope"]
@@ -45,7 +47,7 @@ PSI_IN = 0.25
 PSI_OUT = 0.5
 #: lambda L of a rod in the seam chart beyond which it is out of scope: the tension of a taut rod
 #: with k' = KPRIME_MIN / 2 (K(k') - F(pi/2 - 0) on the taut line, the unified chart's limit)
-LAMBDA_SCOPE = float(ellipk(1.0 - (0.5 * KPRIME_MIN) ** 2))
+LAMBDA_SCOPE = float(complete(1.0 - (0.5 * KPRIME_MIN) ** 2, (0.5 * KPRIME_MIN) ** 2)[0])
 #: largest tension sampled, as t = atanh(sin chi) (= lambda L on the taut line), beyond the scope
 T_MAX = LAMBDA_SCOPE + 0.5
 
@@ -99,15 +101,31 @@ class SeamAtlas:
 
 @lru_cache(maxsize=1)
 def get_seam_atlas() -> SeamAtlas:
-    """The seam patch (cached per process; a few thousand closed-form evaluations)."""
+    """The seam patch (cached per process and on disk, like the pinned atlas: its closed form
+    needs :mod:`scipy.special`, which an IK or FK call does not load)."""
     ps = _psi_nodes()
     chi = _chi_nodes()
-    P, C = np.meshgrid(ps, chi, indexing="ij")
-    t = tip_seam(P, C)
-    arrays = {"x": t.x, "y": t.y, "fx": t.fx, "fy": t.fy, "theta": t.theta, "Phi": t.Phi}
-    for a in arrays.values():
+
+    def build() -> dict[str, NDArray]:
+        P, C = np.meshgrid(ps, chi, indexing="ij")
+        t = tip_seam(P, C)
+        return {name: np.ascontiguousarray(getattr(t, name), dtype=float) for name in _FIELDS}
+
+    got = cached_arrays("seam-atlas", (ps.size, chi.size, _source_key(), _own_key()), build)
+    arrays = {}
+    for name in _FIELDS:
+        a = np.ascontiguousarray(got[name], dtype=float)
         a.setflags(write=False)
+        arrays[name] = a
     return SeamAtlas(psi_s=ps, chi=chi, **arrays)
+
+
+_FIELDS = ("x", "y", "fx", "fy", "theta", "Phi")
+
+
+def _own_key() -> str:
+    """Fingerprint of this module (its nodes), beside the closed form's in ``_source_key``."""
+    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
 
 
 @lru_cache(maxsize=8)

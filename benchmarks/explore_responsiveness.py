@@ -1,4 +1,5 @@
-"""Responsiveness of the explorer, measured in-process (for ``benchmarks/bench.py``).
+"""Responsiveness of the explorer, measured in-process (a row of ``benchmarks/bench.py``; run
+``python benchmarks/explore_responsiveness.py MECH.toml`` alone for the JSON).
 
 :func:`responsiveness` replays what the server does for a user who drags the platform of a
 selected equilibrium and then releases it:
@@ -7,7 +8,7 @@ selected equilibrium and then releases it:
   continuation) -> the drawing data (:func:`~flexkin.explore.scene.scene`) and the table rows;
   target <= 50 ms;
 * *refresh*: release -> the full IK (:func:`~flexkin.explore.state.solve`) -> applied to the
-  state (matching the tracked equilibrium) -> drawing data and table; target <= 200 ms.
+  state (matching the tracked equilibrium) -> drawing data and table; target <= 150 ms.
   The feasibility column is filled afterwards in the background; its time is reported apart.
 
 It needs no web library.  Call it as ``responsiveness("examples/prototype_3pfr.toml")``.
@@ -26,7 +27,7 @@ import numpy as np
 __all__ = ["responsiveness", "TARGET_TRACK_MS", "TARGET_REFRESH_MS"]
 
 TARGET_TRACK_MS = 50.0
-TARGET_REFRESH_MS = 200.0
+TARGET_REFRESH_MS = 150.0
 
 
 def _stats(ms: list[float]) -> dict[str, float]:
@@ -59,8 +60,8 @@ def responsiveness(mech_path: str | os.PathLike[str], pose: Sequence[float] | No
     """
     import flexkin
 
-    from .scene import ShapeCache, scene
-    from .state import ExplorerState, feasibility_of
+    from flexkin.explore.scene import ShapeCache, scene
+    from flexkin.explore.state import ExplorerState, feasibility_of
 
     mech = flexkin.load_mechanism(mech_path)
     L = float(mech.length_scale)
