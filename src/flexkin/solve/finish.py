@@ -158,9 +158,11 @@ def distinct(system: System, X: NDArray, charts: NDArray, residual: NDArray,
 
 
 def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual: NDArray, max_mode: int,
-                     load: NDArray, diag: dict[str, Any] | None = None, fixed: str = "pose") -> list[Solution]:
+                     load: NDArray, diag: dict[str, Any] | None = None, fixed: str = "pose",
+                     margin: bool = False) -> list[Solution]:
     """Reported solutions from refined candidates (module docstring); ``fixed`` is what the
-    analysis held (``"pose"`` for IK, ``"inputs"`` for FK): its Newton matrix gives ``condition``."""
+    analysis held (``"pose"`` for IK, ``"inputs"`` for FK): its Newton matrix gives ``condition``;
+    ``margin`` computes the stability margins now (else on first use)."""
     X = canonical(system, X)
     modes = rod_modes(system, X, charts)
     ok = np.all(modes <= max_mode, axis=1) & np.all(np.isfinite(X), axis=1)
@@ -169,7 +171,7 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
     if len(X) == 0:
         return []
     idx = distinct(system, X, charts, residual, diag)
-    sols = build_solutions(system, mech, X[idx], charts[idx], load, residual[idx], modes[idx], fixed)
+    sols = build_solutions(system, mech, X[idx], charts[idx], load, residual[idx], modes[idx], fixed, margin)
     escale = system.F_ref * system.L_ref
     sols.sort(key=lambda s: (s.modes, round(s.energy / escale, 9), tuple(s.inputs), tuple(s.pose)))
     return [_with_id(s, k + 1) for k, s in enumerate(sols)]
@@ -177,11 +179,13 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
 
 def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDArray,
                     residual: NDArray | None = None, modes: NDArray | None = None,
-                    fixed: str = "pose") -> list[Solution]:
+                    fixed: str = "pose", margin: bool = False, stability: Any = None) -> list[Solution]:
     """:class:`~flexkin.results.Solution` objects (with stability, Jacobians and the independent
     check of :mod:`flexkin.analysis.verify`: ``verified``, ``condition``) for equilibria ``X``
     (n, n_unknowns) in ``charts`` (n, 3); residuals are recomputed when not given.  ``fixed``
-    (``"pose"`` or ``"inputs"``) selects the Newton matrix whose condition is reported."""
+    (``"pose"`` or ``"inputs"``) selects the Newton matrix whose condition is reported;
+    ``margin`` computes the stability margins now (else on first use); ``stability`` (a
+    :class:`~flexkin.analysis.stability.StabilityArrays`) if already computed."""
     X = np.atleast_2d(np.asarray(X, dtype=float))
     charts = np.atleast_2d(np.asarray(charts, dtype=np.int64))
     if len(X) == 0:
@@ -191,7 +195,7 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
     modes_b, boundary = rod_modes(system, X, charts, with_boundary=True)
     if modes is None:
         modes = modes_b
-    stab = mechanism_stability(system, X, charts)
+    stab = mechanism_stability(system, X, charts, margin=margin) if stability is None else stability
     jac = kinematic_jacobians(system, X, charts, load)
     check = verify_solutions(system, X, charts, load, modes, boundary, fixed)
     q, _ = system.unit_rods(X, charts)

@@ -31,7 +31,7 @@ __all__ = ["fk"]
 
 
 def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *, stride: int = 4,
-       stable_only: bool = False, time_budget: float | None = None) -> KinematicsResult:
+       stable_only: bool = False, time_budget: float | None = None, margin: bool = False) -> KinematicsResult:
     """All equilibrium poses of ``mech`` for actuator ``inputs`` under ``load`` (paper §5).
 
     Parameters
@@ -53,6 +53,8 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         Seconds for the whole FK: the global search stops early enough for its candidates to
         be refined in time; the result then says ``complete = False`` (and so it does when
         the search exhausts its node budget).
+    margin : bool
+        Compute every solution's stability margin now (default: on first use).
 
     Returns
     -------
@@ -82,7 +84,7 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     diag["candidates"] = int(len(X))
     diag["search_complete"] = complete
     diag["nodes"] = int(nodes)
-    sols = refine_fk(system, mech, X, system.default_charts(len(X)), w, max_mode, diag)
+    sols = refine_fk(system, mech, X, system.default_charts(len(X)), w, max_mode, diag, margin)
     msg = "" if sols else "no equilibrium pose found for these inputs and load"
     if diag.get("continuum"):
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
@@ -98,14 +100,15 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
 
 
 def refine_fk(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
-              diag: dict[str, Any] | None = None) -> list[Solution]:
-    """Newton-refine FK candidates ``X`` (inputs held) and build the solutions."""
+              diag: dict[str, Any] | None = None, margin: bool = False) -> list[Solution]:
+    """Newton-refine FK candidates ``X`` (inputs held) and build the solutions (``margin``: with
+    their stability margins)."""
     res = newton(system, X, charts, load, "inputs")
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
     return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
-                            "inputs")
+                            "inputs", margin)
 
 
 def _assembly_obstruction(m: System, u: NDArray) -> str:

@@ -39,7 +39,7 @@ def as_load(mech, load: ArrayLike | None) -> NDArray[np.float64]:
 
 
 def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *,
-       stable_only: bool = False, time_budget: float | None = None) -> KinematicsResult:
+       stable_only: bool = False, time_budget: float | None = None, margin: bool = False) -> KinematicsResult:
     """All equilibria of ``mech`` at platform ``pose`` under ``load`` (paper §4).
 
     Parameters
@@ -57,6 +57,9 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     time_budget : float, optional
         Seconds for the global search of step 2; when it runs out, the candidates found so
         far are refined and the result says ``complete = False``.
+    margin : bool
+        Compute every solution's stability margin now (default: on first use -- the verdict
+        and the index come from the closed form and need no margin).
 
     Returns
     -------
@@ -108,7 +111,7 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         X[:, lay.inputs.start + i] = ua + s[:, i] * (ub - ua)
 
     # ---- step 3: Newton on the full equations ----------------------------------------------
-    sols = refine_ik(system, mech, X, system.default_charts(len(X)), w, max_mode, diag)
+    sols = refine_ik(system, mech, X, system.default_charts(len(X)), w, max_mode, diag, margin)
     msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
     if diag.get("continuum"):
         msg = ("singular configuration: straight rods carry axial forces freely, a continuum of equilibria; "
@@ -121,13 +124,15 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
 
 
 def refine_ik(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
-              diag: dict[str, Any] | None = None) -> list[Solution]:
-    """Newton-refine IK candidates ``X`` (pose held) and build the solutions."""
+              diag: dict[str, Any] | None = None, margin: bool = False) -> list[Solution]:
+    """Newton-refine IK candidates ``X`` (pose held) and build the solutions (``margin``: with
+    their stability margins)."""
     res = newton(system, X, charts, load, "pose")
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
-    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag)
+    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
+                            margin=margin)
 
 
 def _empty_message(curves) -> str:
