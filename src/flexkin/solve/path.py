@@ -4,8 +4,10 @@ The path ``x(t) = (1 - t) x_from + t x_to``, ``t`` in [0, 1], is sampled at ``st
 points; between samples the solution is continued (:func:`~flexkin.solve.continuation.continue_ik`)
 with steps halved on failure, down to :data:`MIN_SUBSTEP` of the sample spacing.  Along the
 branch, sign changes of the smooth singularity functions ``det A_IK``, ``det A_FK``
-(:mod:`flexkin.analysis.jacobian`), changes of the stability verdict and of the d-modes are
-reported as events located between two samples.
+(:mod:`flexkin.analysis.jacobian`), changes of the stability verdict (the closed-form index of
+:mod:`flexkin.analysis.stability` at every sample) and of the d-modes are reported as events
+located between two samples.  The stability margin of every sample is computed with the
+eigenvector of the previous sample as the start (a full computation at a d-mode change).
 
 Where the continuation fails even at the smallest sub-step, the branch ends, and the reason
 given follows from what was computed there: an **IK singularity** (the branch folds back,
@@ -26,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..analysis.jacobian import kinematic_jacobians, system_blocks
-from ..analysis.stability import mechanism_stability
+from ..analysis.stability import StabilityArrays, mechanism_stability
 from ..core.validation import as_triple, check_budget, check_count, check_max_mode
 from ..results import Result, Solution, finite_or_none
 from ..system import System
@@ -317,9 +319,9 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
         cs.append(ch[0].copy())
     X, C, T = np.array(xs), np.array(cs), np.array(ts)
     P = X[:, system.layout.pose]
-    st = mechanism_stability(system, X, C)
-    jac = kinematic_jacobians(system, X, C, w)
     modes = rod_modes(system, X, C)
+    st = _stability_along(system, X, C, modes)
+    jac = kinematic_jacobians(system, X, C, w)
     stable = st.stable == 1
     events = sorted(_events(T, modes, stable, jac.sing_ik, jac.sing_fk) + bridged, key=lambda e: e.t_lo)
     msg = ""
@@ -334,6 +336,22 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
                       t=T, poses=P, inputs=X[:, system.layout.inputs], modes=modes, stable=stable, margin=st.margin,
                       det_ik=jac.det_ik, det_fk=jac.det_fk, cond=jac.cond, sing_ik=jac.sing_ik, sing_fk=jac.sing_fk,
                       x=X, charts=C, events=tuple(events), start_solution=sol, **base)
+
+
+def _stability_along(system: System, X: NDArray, C: NDArray, modes: NDArray) -> StabilityArrays:
+    """Stability of the samples of a branch: the closed-form verdict of each, and its margin
+    with the eigenvector carried from the previous sample (computed afresh at a d-mode change;
+    the discretisation restarts by itself when the carried one fails,
+    :mod:`flexkin.analysis.second_variation`)."""
+    rows = []
+    pairs = None
+    for j in range(len(X)):
+        guess = pairs if j and np.array_equal(modes[j], modes[j - 1]) else None
+        st = mechanism_stability(system, X[j:j + 1], C[j:j + 1], margin=True, guess=guess)
+        pairs = st.pairs
+        rows.append(st)
+    return StabilityArrays(*(np.concatenate([getattr(r, f) for r in rows]) for f in
+                             ("stable", "margin", "resolution", "index", "method", "flags", "gap", "sign")))
 
 
 def _stop_reason(system: System, last: list, w: NDArray, t_end: float, dt_end: float, span: float) -> str:
