@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from ..analysis.jacobian import kinematic_jacobians
 from ..analysis.stability import mechanism_stability
 from ..analysis.verify import verify_solutions
+from ..core.jit import njit
 from ..core.geometry2d import wrap_to_pi
 from ..results import Solution
 from ..rod.atlas import in_scope
@@ -100,6 +101,59 @@ def _in_scope(system: System, X: NDArray, charts: NDArray, modes: NDArray, max_m
 STRAIGHT_TOL = 1e-9
 
 
+@njit
+def _distinct(order, geo, rod, straight, fmag):
+    """The compiled loops of :func:`distinct`: the first candidate (in ``order``) of every
+    equilibrium, then the least loaded one of every continuum of straight rods."""
+    chosen = np.empty(order.shape[0], np.int64)
+    nc = 0
+    for i in order:
+        same = False
+        for c in range(nc):
+            k = chosen[c]
+            d = 0.0
+            for j in range(geo.shape[1]):
+                d = max(d, abs(geo[k, j] - geo[i, j]))
+            if d > 1e-6:
+                continue
+            d = 0.0
+            for j in range(rod.shape[1]):
+                d = max(d, abs(rod[k, j] - rod[i, j]))
+            if d <= 1e-6:
+                same = True
+                break
+        if not same:
+            chosen[nc] = i
+            nc += 1
+    chosen = chosen[:nc]
+    by_load = chosen[np.argsort(fmag[chosen], kind="mergesort")]
+    keep = np.empty(nc, np.int64)
+    nk = 0
+    for a in by_load:
+        merged = False
+        for c in range(nk):
+            b = keep[c]
+            d = 0.0
+            for j in range(geo.shape[1]):
+                d = max(d, abs(geo[a, j] - geo[b, j]))
+            if d > 1e-8:
+                continue
+            ok = True
+            for r in range(3):
+                d = 0.0
+                for j in range(3):
+                    d = max(d, abs(rod[a, 3 * r + j] - rod[b, 3 * r + j]))
+                if d > 1e-6 and not (straight[a, r] and straight[b, r]):
+                    ok = False
+            if ok:
+                merged = True
+                break
+        if not merged:
+            keep[nk] = a
+            nk += 1
+    return chosen, keep[:nk]
+
+
 def distinct(system: System, X: NDArray, charts: NDArray, residual: NDArray,
              diag: dict[str, Any] | None = None) -> NDArray[np.int64]:
     """Indices of one candidate per equilibrium (the smallest residual of each).
@@ -126,32 +180,11 @@ def distinct(system: System, X: NDArray, charts: NDArray, residual: NDArray,
                           w["base_moment"][..., None] / (system.F_ref * system.L_ref)], axis=2)  # (n, 3, 3)
     straight = (np.abs(q[..., X_] - 1.0) < STRAIGHT_TOL) & (np.abs(q[..., Y_]) < STRAIGHT_TOL)
     order = np.argsort(residual, kind="stable")
-    chosen: list[int] = []
-    for i in order:
-        if not chosen:
-            chosen.append(int(i))
-            continue
-        c = np.array(chosen)
-        same_geo = np.max(np.abs(geo[c] - geo[i]), axis=1) <= 1e-6
-        rod_differs = np.max(np.abs(rod[c] - rod[i]), axis=2) > 1e-6          # (m, 3)
-        same = same_geo & ~np.any(rod_differs, axis=1)
-        if np.any(same):
-            continue
-        chosen.append(int(i))
-    # continuum: same geometry, forces differing only on rods straight in both
     fmag = np.sum(np.abs(w["force"].reshape(-1, 6)), axis=1)
-    keep: list[int] = []
-    for a in sorted(chosen, key=lambda k: fmag[k]):
-        merged = False
-        for b in keep:
-            if np.max(np.abs(geo[a] - geo[b])) > 1e-8:
-                continue
-            differs = np.max(np.abs(rod[a] - rod[b]), axis=1) > 1e-6
-            if np.all(~differs | (straight[a] & straight[b])):
-                merged = True
-                break
-        if not merged:
-            keep.append(a)
+    chosen, keep = _distinct(order, np.ascontiguousarray(geo), np.ascontiguousarray(rod.reshape(-1, 9)),
+                             straight, fmag)
+    chosen = list(chosen)
+    keep = list(keep)
     if diag is not None and len(keep) < len(chosen):
         diag["continuum"] = len(chosen) - len(keep) + 1
     return np.array(sorted(keep), dtype=np.int64)
@@ -201,12 +234,18 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
     q, _ = system.unit_rods(X, charts)
     lay = system.layout
     A, alpha, L = system.clamps(X[:, lay.inputs])
+    n = len(X)
+    coords = np.zeros((n, 3, 3))
+    for i in range(3):
+        zi = X[:, lay.rod[i]]
+        coords[:, i, :zi.shape[1]] = zi
+    dims = np.broadcast_to([lay.rod[i].stop - lay.rod[i].start for i in range(3)], (n, 3)).ravel()
+    flat = RodState.many(q.reshape(n * 3, -1), charts.reshape(-1), coords.reshape(n * 3, 3), L.reshape(-1),
+                         np.tile(system.EI, n), A.reshape(n * 3, 2), alpha.reshape(-1), modes.reshape(-1),
+                         tuple(mech.legs[i].joint for _ in range(n) for i in range(3)), boundary.reshape(-1), dims)
     sols = []
-    for j in range(len(X)):
-        rods = tuple(RodState.from_unit(q[j, i], int(charts[j, i]), X[j, lay.rod[i]], L[j, i], system.EI[i],
-                                        A[j, i], alpha[j, i], int(modes[j, i]), mech.legs[i].joint,
-                                        bool(boundary[j, i]))
-                     for i in range(3))
+    for j in range(n):
+        rods = tuple(flat[3 * j:3 * j + 3])
         st = stab.item(j)
         sols.append(Solution(mech, tuple(float(v) for v in X[j, lay.pose]), tuple(float(v) for v in X[j, lay.inputs]),
                              tuple(int(v) for v in modes[j]),
