@@ -3,9 +3,10 @@
 * :func:`flexkin.solve.equilibrium.equilibrium_triples` (compiled subdivision of segment triples,
   Eq. 15) finds every segment triple of random polylines whose linear equations have a solution
   inside the segments: the reference is the brute-force solve of every triple;
-* :func:`flexkin.analysis.stability._project` (Householder projection onto the null space of the
-  constraints, rank-revealing) gives the eigenvalues of ``Z^T Q Z`` for an orthonormal null-space
-  basis ``Z`` from :func:`scipy.linalg.null_space`, also when the constraints lose rank;
+* the banded second variation of :mod:`flexkin.analysis.second_variation` (Sylvester counts of
+  the KKT system, shift-invert) gives the constrained eigenvalues of the dense pencil on an
+  orthonormal null-space basis from :func:`scipy.linalg.null_space`, also when the
+  constraints lose rank;
 * the curve snapping of :mod:`flexkin.solve.curves` (Newton with the analytic gradient) lands on
   the level set of the closed-form tip (:func:`flexkin.rod.closed_form.tip_chart`).
 """
@@ -18,7 +19,6 @@ import numpy as np
 import pytest
 from scipy.linalg import null_space
 
-from flexkin.analysis.stability import _project
 from flexkin.mechanism.actuators import COND_CIRCLE, COND_LINE
 from flexkin.rod.closed_form import tip_chart
 from flexkin.rod.kernels import CHART_UNIFIED
@@ -65,23 +65,85 @@ def test_triples_budget_reports_incomplete():
     assert not complete
 
 
+def _banded(rng, n, w, shift):
+    """A random symmetric banded matrix (lower storage, half-bandwidth w) and its dense copy."""
+    Ab = rng.normal(size=(w + 1, n))
+    Ab[0] += shift
+    A = np.zeros((n, n))
+    for k in range(w + 1):
+        for j in range(n - k):
+            A[j + k, j] = A[j, j + k] = Ab[k, j]
+    return Ab, A
+
+
 @pytest.mark.parametrize("rank_loss", [False, True])
-def test_projection_equals_null_space_reference(rank_loss):
+def test_sylvester_count_and_shift_invert_equal_dense_reference(rank_loss):
+    """The banded KKT factorisation of :mod:`flexkin.analysis.second_variation` (three banded
+    blocks, a 3-dof pose block, dense constraint rows with their pose coupling): the Sylvester
+    count of eigenvalues below a shift (Eq. F3) and the shift-invert smallest eigenvalue equal
+    the constrained eigenvalues of the dense pencil on the null space of the constraints
+    (:func:`scipy.linalg.null_space`), also when constraint rows are dependent."""
+    from scipy.linalg import eigh
+
+    from flexkin.analysis.second_variation import _count, _independent_rows, _lowest, negative_eigenvalues
+
     rng = np.random.default_rng(11)
-    p, m = 40, 6
-    A = rng.normal(size=(p, p))
-    Q = A + A.T
-    C = rng.normal(size=(m, p))
+    w, ns = 4, np.array([20, 16, 24])
+    nmax = ns.max()
+    Kb = np.zeros((3, w + 1, nmax))
+    Mb = np.zeros((3, w + 1, nmax))
+    C = np.zeros((3, 3, nmax))
+    T = np.zeros((3, 3, 3))
+    mi = np.array([2, 3, 2])
+    blocks_K, blocks_M = [], []
+    for i in range(3):
+        Kb[i, :, :ns[i]], Ki = _banded(rng, ns[i], w, 0.0)
+        Mi_b, Mi = _banded(rng, ns[i], w, 0.0)
+        Mi = Mi @ Mi.T + ns[i] * np.eye(ns[i])          # positive definite, then re-banded
+        Mi = np.where(np.abs(np.subtract.outer(np.arange(ns[i]), np.arange(ns[i]))) <= w, Mi, 0.0)
+        Mi += 10.0 * ns[i] * np.eye(ns[i])
+        for k in range(w + 1):
+            Mb[i, k, :ns[i] - k] = np.diagonal(Mi, -k)
+        blocks_K.append(Ki)
+        blocks_M.append(Mi)
+        C[i, :mi[i], :ns[i]] = rng.normal(size=(mi[i], ns[i]))
+        T[i, :mi[i]] = rng.normal(size=(mi[i], 3))
     if rank_loss:
-        C[4] = C[0] - 2.0 * C[1]  # two dependent rows: rank 4
-        C[5] = 0.0
-    Z = null_space(C, rcond=1e-9)
-    ref = np.linalg.eigvalsh(Z.T @ Q @ Z)
-    B = np.empty((p, p))
-    r = _project(Q.copy(), C, B)
-    assert r == (4 if rank_loss else 6) and r == p - Z.shape[1]
-    ev = np.linalg.eigvalsh(B[:p - r, :p - r])
-    assert np.allclose(ev, ref, rtol=1e-12, atol=1e-11 * np.abs(ref).max())
+        C[2, 1] = 0.0                                      # a vacuous row: no rod part ...
+        T[2, 1] = 0.0                                      # ... and no pose part
+    Pp = np.diag([0.0, 0.0, -0.7])
+    n = ns.sum() + 3
+    K = np.zeros((n, n))
+    M = np.zeros((n, n))
+    rows = []
+    o = 0
+    for i in range(3):
+        K[o:o + ns[i], o:o + ns[i]] = blocks_K[i]
+        M[o:o + ns[i], o:o + ns[i]] = blocks_M[i]
+        for r in range(mi[i]):
+            row = np.zeros(n)
+            row[o:o + ns[i]] = C[i, r, :ns[i]]
+            row[-3:] = T[i, r]
+            rows.append(row)
+        o += ns[i]
+    K[-3:, -3:] = Pp
+    M[-3:, -3:] = np.eye(3)
+    Z = null_space(np.array(rows), rcond=1e-9)
+    ref = eigh(Z.T @ K @ Z, Z.T @ M @ Z, eigvals_only=True)
+    _independent_rows(C, C.copy(), T, mi, ns, 3, 3)
+    assert mi.sum() == (6 if rank_loss else 7)
+    for sigma in np.concatenate([ref[:6] - 1e-6, ref[:6] + 1e-6, [0.0, -50.0]]):
+        assert _count(Kb, Mb, C, T, mi, ns, 3, 3, w, Pp, sigma) == np.sum(ref < sigma)
+    vr = np.zeros((3, nmax))
+    vp = np.zeros(3)
+    mu, _ = _lowest(Kb, Mb, C, T, mi, ns, 3, 3, w, Pp, ref[0] - 10.0 * abs(ref[0]) - 10.0, vr, vp, False, -1, True)
+    assert mu == pytest.approx(ref[0], rel=1e-10, abs=1e-10)
+    # Bunch-Parlett inertia of symmetric indefinite matrices, with exact zeros on the diagonal
+    for _ in range(20):
+        A = rng.normal(size=(9, 9))
+        A = A + A.T
+        A[np.diag_indices(9)[0][:4], np.diag_indices(9)[1][:4]] = 0.0
+        assert negative_eigenvalues(A, 9) == np.sum(np.linalg.eigvalsh(A) < 0)
 
 
 @pytest.mark.parametrize("code, par", [(COND_LINE, (0.4, 0.0)), (COND_CIRCLE, (0.7, 0.3))])

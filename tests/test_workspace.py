@@ -266,9 +266,11 @@ def test_region_cut_by_given_bounds_is_marked_and_default_bounds_grow():
 
 
 def test_stability_along_the_wave_equals_the_full_check(rfr, rfr_ws):
-    """The sign of det A_FK carried along the wave gives the same map as the whole second
-    variation at every cell (paper §6: instability and FK singularity coincide)."""
-    full = workspace(rfr, TH, step=0.03, bounds=(-0.6, 0.6, -0.6, 0.6), all_aspects=False, stability="full")
+    """The closed-form verdict at every cell (the default) gives the same map as the margin of
+    the discretised second variation carried along the wave to every cell
+    (``stability="margins"``), every margin positive; margins filled in afterwards (layer by
+    layer from the seed) equal the carried ones."""
+    full = workspace(rfr, TH, step=0.03, bounds=(-0.6, 0.6, -0.6, 0.6), all_aspects=False, stability="margins")
     a, b = rfr_ws.maps[0], full.maps[0]
     assert np.array_equal(a.status, b.status)
     assert np.array_equal(a.boundary_fk, b.boundary_fk) and np.array_equal(a.boundary_ik, b.boundary_ik)

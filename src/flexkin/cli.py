@@ -142,6 +142,9 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="rod shapes of every listed solution: .csv (solution, leg, s, x, y, theta [deg], "
                             "moment) or .npz")
         k.add_argument("--stable-only", action="store_true", help="list only the stable equilibria")
+        k.add_argument("--margin", action="store_true",
+                       help="also compute every solution's stability margin (the table gains a margin column; "
+                            "--json always carries it)")
         k.add_argument("--feasible-only", action="store_true",
                        help="list only the feasible equilibria (no collision, strain and inputs within limits)")
         k.add_argument("--model", choices=("kirchhoff", "cosserat"), default="kirchhoff",
@@ -549,7 +552,7 @@ def _kinematics(a, mech):
         pose = (a.pose[0], a.pose[1], math.radians(a.pose[2]))
         with ProgressBar("flexkin ik", enabled=_progress(a)) as bar:
             res = ik(mech, pose, load=a.load, max_mode=a.max_mode, time_budget=getattr(a, "time_budget", None),
-                     progress=bar)
+                     progress=bar, margin=getattr(a, "margin", False))
         what = f"inverse kinematics at pose ({a.pose[0]:g} m, {a.pose[1]:g} m, {a.pose[2]:g} deg)"
         return res, what
     from .mechanism.plausibility import revolute_inputs_look_like_radians
@@ -566,7 +569,7 @@ def _kinematics(a, mech):
     u = [float(leg.from_display(v)) for v, leg in zip(a.inputs, mech.legs)]
     with ProgressBar("flexkin fk", enabled=_progress(a)) as bar:
         res = fk(mech, u, load=a.load, max_mode=a.max_mode, time_budget=getattr(a, "time_budget", None),
-                 progress=bar)
+                 progress=bar, margin=getattr(a, "margin", False))
     units = [leg.input_unit for leg in mech.legs]
     what = "forward kinematics at inputs (" + ", ".join(f"{v:g} {un}" for v, un in zip(a.inputs, units)) + ")"
     return res, what

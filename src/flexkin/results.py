@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from .rod.state import RodState
 
 __all__ = ["Stability", "Jacobians", "Solution", "Result", "KinematicsResult", "IKDiagnostics",
-           "FKDiagnostics", "finite_or_none"]
+           "FKDiagnostics", "finite_or_none", "fill_margins"]
 
 
 def finite_or_none(v: Any) -> float | None:
@@ -45,15 +45,17 @@ class Stability:
     Attributes
     ----------
     stable : bool or None
-        ``None`` when the smallest eigenvalue of the second variation is below the
-        resolution the computation can guarantee (``note`` says why).
+        From the closed form (:mod:`flexkin.analysis.stability`); ``None`` where the closed form
+        is not conclusive and the smallest eigenvalue of the discretised second variation is
+        below the resolution the computation can guarantee (``note`` says why).
     margin : float
-        Smallest eigenvalue of the dimensionless second variation
-        (:mod:`flexkin.analysis.stability`); positive iff stable.
+        Smallest eigenvalue of the dimensionless second variation; positive iff stable.
+        ``NaN`` until computed: :attr:`Solution.stability_margin` and :meth:`Solution.to_dict`
+        compute it on first use (``ik(..., margin=True)`` computes it up front).
     index : int or None
         Number of negative eigenvalues (unstable directions) where resolved.
     resolution : float
-        The guaranteed resolution of ``margin``.
+        The guaranteed resolution of ``margin`` (``NaN`` until computed).
     note : str
         Why the verdict is undecided, or ``""``.
     """
@@ -150,8 +152,12 @@ class Solution:
 
     @property
     def stability_margin(self) -> float | None:
-        """Smallest eigenvalue of the dimensionless second variation."""
-        return None if self.stability is None else self.stability.margin
+        """Smallest eigenvalue of the dimensionless second variation (computed on first use)."""
+        if self.stability is None:
+            return None
+        if np.isnan(self.stability.margin):
+            fill_margins([self])
+        return self.stability.margin
 
     @property
     def stability_index(self) -> int | None:
@@ -194,7 +200,7 @@ class Solution:
             "inputs": self.inputs_display(),
             "modes": list(self.modes),
             "stable": None if st is None else st.stable,
-            "stability_margin": None if st is None else finite_or_none(st.margin),
+            "stability_margin": None if st is None else finite_or_none(self.stability_margin),
             "stability_index": None if st is None else st.index,
         }
         if st is not None and st.note:
@@ -209,6 +215,35 @@ class Solution:
             "indices": self.indices.to_dict(),
         })
         return d
+
+
+def fill_margins(solutions: Any) -> None:
+    """Compute the stability margins the solutions do not have yet, in one batch per
+    mechanism (the discretised second variation, :mod:`flexkin.analysis.stability`), into their
+    :class:`Stability` (a cache: the margin of an equilibrium was always defined, it is only
+    computed on demand).
+
+    Parameters
+    ----------
+    solutions : sequence of Solution
+        Solutions, possibly of several mechanisms.
+    """
+    todo = [s for s in solutions if s.stability is not None and np.isnan(s.stability.margin)
+            and s.mechanism is not None]
+    if not todo:
+        return
+    from .analysis.stability import solution_margins
+    from .system import System
+
+    groups: dict[int, list[Solution]] = {}
+    for s in todo:
+        groups.setdefault(id(s.mechanism), []).append(s)
+    for group in groups.values():
+        system = System.from_mechanism(group[0].mechanism)
+        index = np.array([-1 if s.stability.index is None else s.stability.index for s in group])
+        mu, res = solution_margins(system, np.array([s.x for s in group]), np.array([s.charts for s in group]), index)
+        for s, m, r in zip(group, mu, res):
+            object.__setattr__(s, "stability", dataclasses.replace(s.stability, margin=float(m), resolution=float(r)))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -364,6 +399,7 @@ class KinematicsResult(Result):
         d["complete"] = self.complete
         d["message"] = self.message
         feas = self.feasibility() if feasibility else (None,) * len(self.solutions)
+        fill_margins(self.solutions)
         self._batch_indices()
         sols = []
         for s, f in zip(self.solutions, feas):
@@ -386,7 +422,8 @@ class KinematicsResult(Result):
                 s.__dict__["indices"] = ix  # the functools.cached_property slot
 
     def table(self, feasibility: bool = False) -> str:
-        """Human-readable table of the solutions.
+        """Human-readable table of the solutions (with a ``margin`` column when the margins were
+        computed, e.g. ``ik(..., margin=True)``).
 
         Parameters
         ----------
@@ -399,9 +436,12 @@ class KinematicsResult(Result):
         str
         """
         units = [leg.input_unit for leg in self.mechanism.legs]
+        with_margin = bool(self.solutions) and all(s.stability is not None and not np.isnan(s.stability.margin)
+                                                   for s in self.solutions)
         head = (f"{'#':>3} {'modes':>5} {'x [m]':>10} {'y [m]':>10} {'th [deg]':>9} "
                 + " ".join(f"{'u' + str(i + 1) + ' [' + u + ']':>11}" for i, u in enumerate(units))
-                + f" {'energy [J]':>11} {'stable':>6} {'residual':>9}")
+                + f" {'energy [J]':>11} {'stable':>6}" + (f" {'margin':>9}" if with_margin else "")
+                + f" {'residual':>9}")
         if feasibility:
             head += f" {'feasible':>8}  reasons"
         lines = [head, "-" * len(head)]
@@ -409,9 +449,10 @@ class KinematicsResult(Result):
         for s, f in zip(self.solutions, feas):
             u = s.inputs_display()
             st = "?" if s.stable is None else ("yes" if s.stable else "no")
+            mg = f" {s.stability.margin:>9.3g}" if with_margin else ""
             row = (f"{s.id:>3} {s.mode_label:>5} {s.pose[0]:>10.5f} {s.pose[1]:>10.5f} {np.degrees(s.pose[2]):>9.3f} "
                    + " ".join(f"{v:>11.5f}" for v in u)
-                   + f" {s.energy:>11.4e} {st:>6} {s.residual:>9.1e}")
+                   + f" {s.energy:>11.4e} {st:>6}{mg} {s.residual:>9.1e}")
             if f is not None:
                 row += f" {'yes' if f.feasible else 'no':>8}  {'; '.join(f.reasons)}".rstrip()
             lines.append(row)

@@ -1,350 +1,571 @@
-"""Stability of an equilibrium with the actuators locked (paper §4.3): the smallest eigenvalue
-of the whole second variation, with a guaranteed resolution.
+"""Stability of an equilibrium with the actuators locked (paper §4.3): the verdict and the
+Morse index from the closed form, the margin from a banded discretisation.
 
-The potential of the mechanism is
+**The second variation.**  The potential of the mechanism is
+``V = sum_i (EI_i/2) int_0^{L_i} theta_i'^2 ds - F . P - M theta_P`` on configurations with every
+rod clamped at its base (actuators locked), its tip at ``B_i = P + Rot(theta_P) b_i`` and, for a
+clamped joint, its tip tangent at ``theta_P + tip_angle_i``.  With the tip forces ``n_i`` (on the
+rod, by the platform; the constant internal force of Eq. 7) as the multipliers of the tip
+constraints, the second variation on perturbations ``(eta_i, dq)``, ``eta_i = d theta_i``,
+``eta_i(0) = 0``, ``dq = (dP, d theta_P)`` is
 
-    V = sum_i (EI_i/2) int_0^{L_i} theta_i'(s)^2 ds  -  F . P  -  M theta_P
+    Q = sum_i int_0^{L_i} [EI_i eta_i'^2 + (n_i . t_i) eta_i^2] ds - (sum_i n_i . a_i) dtheta_P^2     (S1)
 
-on configurations with every rod clamped at its base (actuators locked), its tip at
-``B_i = P + Rot(theta_P) b_i`` and, for a clamped joint, its tip tangent at
-``theta_P + tip_angle_i``.  With the tip forces ``n_i`` and tip moments as the Lagrange
-multipliers of those constraints, the second variation on admissible perturbations
-``(eta_i(s), dq)`` (``eta_i = d theta_i``, ``eta_i(0) = 0``, ``dq = (dP, d theta_P)``) is
+(``t_i`` the unit tangent, ``a_i = B_i - P``) on the admissible subspace
 
-    Q = sum_i int [ EI_i eta_i'^2 + (n_i . t_i) eta_i^2 ] ds  -  (sum_i n_i . (B_i - P)) d theta_P^2,
+    delta r_i = int (-sin theta_i, cos theta_i) eta_i ds = dP + dtheta_P perp(a_i)                     (S2)
+    eta_i(L_i) = dtheta_P                    (clamped tip only)                                        (S3)
 
-subject to ``int (-sin theta_i, cos theta_i) eta_i ds = dP + d theta_P perp(B_i - P)`` and, for a
-clamped tip, ``eta_i(L_i) = d theta_P``.  The equilibrium is stable when ``Q`` is positive
-definite there.
+The equilibrium is **stable** when ``Q`` is positive definite there (``EI > 0``: Legendre's
+condition holds, so positive definite is coercive), and its **index** is the number of
+negative directions.
+
+**Jacobi fields from the closed form.**  Scale rod ``i`` to the unit rod (``L = EI = 1``) in
+its clamp frame.  Its equilibria form the three-parameter family of the base wrench
+``p = (a, b, m0)``: ``theta'' = a sin theta - b cos theta`` (Eq. 8 with ``n = (a, b)``),
+``theta(0) = 0``, ``theta'(0) = m0``, in closed form in every chart
+(:mod:`flexkin.rod.wrench`; every chart's evaluation provides the base wrench in the ``FX``,
+``FY``, ``M0`` slots).  Differentiating the family:
+
+    u = d theta / d m0:            u'' = q u,             u(0) = 0, u'(0) = 1,   q = n . t         (J1)
+    d theta / da, d theta / db:    w'' = q w + (sin theta, -cos theta),  w(0) = w'(0) = 0         (J2)
+
+``u`` is the Jacobi field of the unconstrained problem, the others are the constrained Jacobi
+fields of the isoperimetric constraints (S2), and their tip values are the closed-form
+Jacobian ``D = d(x, y, theta, m)(1) / d(a, b, m0)`` (``m = theta'``).  The bending moment
+``m = theta'`` solves (J1) too (the family is autonomous in ``s``), with the Wronskian
+
+    u m' - u' m = -m0.                                                                                (J3)
+
+**One rod, unconstrained.**  (i) *Clamped-clamped* (``eta(0) = eta(1) = 0``): by the Morse
+index theorem its index is the number ``Z_u`` of zeros of ``u`` in (0, 1).  By Sturm's separation
+theorem the zeros of ``u`` and ``m`` interlace (J3), and ``u = m m0 int_0^s m^-2`` between zeros of
+``m``; hence, with ``J`` the zeros of ``m`` strictly inside (the inflections, at
+``u = (2 j + 1) K`` in the elliptic argument ``u = F(phi)``, ``phi(s) = am(F(phi_1) + lambda s)``):
+
+    Z_u = J - 1 + [u(1) m(1) m0 > 0],     Z_u = J for a pinned tip (m(1) = 0)                        (J4)
+
+and an inflection at an end (within ``|cos phi| < 1e-8``) is left out of ``J`` and the bracket
+(the limit of both sides).  A non-inflectional (rotating) rod has ``Z_u = 0``.
+(ii) *Free tip* (``eta(1)`` free, the dead-load cantilever): the Prüfer angle of ``u`` gives
+
+    index_free = Z_u + [u(1) u'(1) < 0]                                                               (J5)
+
+with ``u(1) = -m0 / m'(1)`` from (J3) when ``m(1) = 0``.  Both are 0 when ``lambda L < pi/2``
+(Poincaré: ``Q >= (pi^2/4 - lambda^2) int eta^2``).
+
+**The mechanism: a bordered matrix.**  Split each rod's perturbation into the clamped-clamped
+space ``A_cc`` and the tip rotation ``t_i``: ``eta = eta0 + t_i xi``, ``xi = u / u(1)``.  ``xi`` is a
+Jacobi field with ``xi(1) = 1``, so it is ``Q``-orthogonal to ``A_cc`` and
+``Q_i = Q_cc[eta0] + t_i^2 u'(1) / u(1)``.  The admissible subspace is then ``A = (+)_i A_cc,i``
+times the finite variables ``y = (dq, t_i)`` (``t_i = dtheta_P`` for a clamped tip) under the
+constraints (S2) ``C_i eta0 + E_i y = 0``.  Haynsworth's inertia additivity on the KKT matrix
+(Maddocks 1985, restricted quadratic forms; nondegenerate ``A``) gives
+
+    index(Q) = sum_i index(A_i) + neg(B) - m,     nullity(Q) = nullity(B),
+    B = [[Y, E^T], [E, -G]],     G = blockdiag(G_i),   G_i = C_i A_i^-1 C_i^T                        (M1)
+
+with ``m`` the rows of ``E``.  ``Y`` holds ``-sum n_i . a_i`` on ``dtheta_P`` and ``u'(1)/u(1)`` on each
+``t_i``; ``E`` the rows ``-(I, perp a_i)`` on ``dq`` and ``delta r(xi) = (dr/dm0)/u(1)`` on ``t_i``;
+``G_i`` is the rod's tip compliance at a held tip angle, the Schur complement of ``D``:
+
+    G_i = dr/d(a, b) - (dr/dm0) (d theta/d(a, b)) / u(1)                                               (M2)
+
+(rotated to the world and scaled by ``l_i^3/e_i``).  Where ``u(1)`` is small compared with
+``u'(1)`` a rod uses the free base instead: ``index(A_i) = index_free`` (J5), no ``t_i``, ``G_i`` the
+compliance at a held tip moment (Schur complement w.r.t. ``(m, m0)``) and, for a clamped tip,
+the full 3 x 3 compliance ``d(x, y, theta)/d(f_x, f_y, m(1))`` with the row ``eta(1) = dtheta_P``.
+Every base used is nondegenerate (``(u(1), u'(1)) != 0``), so (M1) holds wherever ``Q`` is
+nondegenerate -- no condition on conjugate points at the tips.  Equivalently, where the rods
+held at their tips are nondegenerate, index(Q) = sum_i index(rod i held) + index(K) with ``K``
+the pose stiffness (:func:`output_stiffness`), the decomposition ``tests/stability_oracle.py``
+checks independently.  ``det B`` changes sign wherever an eigenvalue of ``Q`` crosses zero (the
+bordered determinant along a continuation).
+
+**Validity and fallback.**  The entries of ``B`` carry the errors of ``D`` (relative
+``1e-15 (1 + 1/k')``, measured against ODE integration and against the pinned chart's own
+compliance), propagated through (M2).  The closed-form inertia is accepted when the smallest
+``|eigenvalue|`` of the equilibrated ``B`` exceeds :data:`GAP_SAFETY` times that error bound
+(Weyl's inequality).  Otherwise -- ``Q`` nearly singular (a near-marginal equilibrium), a
+rod straight under compression (``k^2 < 1e-12``, where the wrench chart's derivatives
+cancel), non-finite derivatives, inflections at both ends of a clamped rod -- the verdict
+and the index come from the discretised second variation
+(:mod:`flexkin.analysis.second_variation`): ``stable`` when its smallest eigenvalue exceeds
+three times its resolution, unstable below minus that, and ``None`` with a ``note`` between.
 
 **Margin.**  ``stability_margin`` is the smallest eigenvalue of ``Q`` on the admissible
-subspace with respect to the metric ``sum_i int eta_i^2 ds / L_ref + |dP / L_ref|^2 + d theta_P^2``,
-in units of ``EI_ref / L_ref`` (``L_ref``: the mechanism's length scale, ``EI_ref``: the mean
-bending stiffness).  It includes the rods' own modes (a rod that buckles with its tip held)
-and the platform's (an FK singularity is where it crosses zero).  ``stability_index`` is the
-number of negative eigenvalues (the Morse index).
-
-**Discretisation.**  Each ``eta_i`` is expanded in integrated Legendre polynomials
-(``phi_k' ~ P_{k-1}``, so ``phi_k(0) = 0``), orthonormalised in L^2; the integrals are
-Gauss-Legendre quadratures of the closed-form tangent angle (:mod:`flexkin.rod.kernels`).  The
-eigenvalues converge exponentially in the number of modes ``N`` per rod; ``N`` grows with the
-rods' ``lambda L`` (the scale of their features) and every eigenvalue is computed at two
-resolutions: their difference (with a round-off floor) is the **resolution**.
-
-**Verdict.**  ``stable`` is ``True`` when ``margin > 3 resolution``, ``False`` when
-``margin < -3 resolution`` and ``None`` (undecided, with a ``note``) otherwise, after refining
-up to :data:`N_MAX` modes: a loop held in tension, whose smallest eigenvalue is exponentially
-small (the loop almost translates freely along the rod), comes out ``None`` unless the
-discretisation resolves it.
+subspace in the metric ``sum_i int eta_i^2 ds / L_ref + |dP / L_ref|^2 + dtheta_P^2`` (units
+``EI_ref / L_ref``), from the banded discretisation.  It is computed where it matters: in the
+fallback, when asked (``margin=True``; ``flexkin ik --margin``), and for the JSON
+(:meth:`flexkin.results.Solution.to_dict` fills it in); elsewhere it is ``NaN`` until asked.
+Along a continuation the previous eigenvector starts the next computation (:class:`Eigenpairs`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.geometry2d import rotate
 from ..core.jit import njit
 from ..core.linalg_threads import single_threaded_blas
 from ..results import Stability
 from ..rod.closed_form import seam_to_chart
-from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, PHI, tangents
+from ..rod.elliptic import rf
+from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, FX, FY, M0, ML, NQ, PHI, TH, X, Y, eval_rod
 from ..rod.state import RodState
+from ..rod.wrench import _half_angles, wrench_eval
 from ..system import System
+from .second_variation import P_FINE, _F, element_rule, elements_for, fe_stability, rod_nodes
 
-__all__ = ["StabilityArrays", "mechanism_stability", "rod_stability", "RodStability", "output_stiffness",
-           "N_MIN", "N_MAX"]
+__all__ = ["StabilityArrays", "Eigenpairs", "mechanism_stability", "closed_form_index", "rod_stability",
+           "RodStability", "output_stiffness", "solution_margins", "GAP_SAFETY"]
 
-#: modes per rod: the first resolution, and the most the refinement goes to
-N_MIN, N_MAX = 16, 160
-#: relative round-off floor of the resolution
-ROUNDOFF = 1e-13
-#: a constraint whose singular value is below this fraction of the largest is vacuous: to first
-#: order a straight rod's axial constraint does not restrict its perturbations
-RANK_RTOL = 1e-9
-
-
-# ---- the basis: L2-orthonormal integrated Legendre polynomials on [0, 1] ------------------------
-@dataclass(frozen=True)
-class Basis:
-    """``N`` modes on ``Nq`` Gauss-Legendre nodes of [0, 1]: values ``psi`` (N, Nq), weights
-    ``w`` (Nq,), stiffness ``K = int psi' psi'^T`` (N, N) and tip values ``psi(1)`` (N,)."""
-
-    N: int
-    s: NDArray[np.float64]
-    w: NDArray[np.float64]
-    psi: NDArray[np.float64]
-    K: NDArray[np.float64]
-    tip: NDArray[np.float64]
+#: below this lambda L both base problems of a rod are positive definite (J5)
+LAM_SAFE = 0.5 * math.pi * 0.999
+#: an inflection within this |cos phi| of an end of a rod is at that end
+INFL_TOL = 1e-8
+#: a librating rod with k^2 below this is straight under compression (fallback)
+K2_MIN = 1e-12
+#: the closed-form inertia is accepted when the equilibrated B's smallest |eigenvalue| exceeds
+#: this many times its propagated error bound
+GAP_SAFETY = 10.0
+#: why the closed form was not accepted (bits of :attr:`StabilityArrays.flags`)
+F_STRAIGHT, F_NONFINITE, F_GAP, F_ENDS, F_DISAGREE = 1, 2, 4, 8, 16
+_WHY = {F_STRAIGHT: "a rod straight under compression", F_NONFINITE: "non-finite rod derivatives",
+        F_GAP: "the second variation is nearly singular", F_ENDS: "a clamped rod with inflections at both ends",
+        F_DISAGREE: "the closed form and the discretisation disagree"}
+#: methods (:attr:`StabilityArrays.method`)
+CLOSED_FORM, DISCRETISED = 0, 1
 
 
-@lru_cache(maxsize=32)
-def basis(N: int) -> Basis:
-    """The orthonormal basis with ``N`` modes (cached)."""
-    nq = 2 * N + 8
-    x, w = np.polynomial.legendre.leggauss(nq)
-    s, w = 0.5 * (x + 1.0), 0.5 * w
-    # phi_k(s) = sqrt(2k - 1) int_0^s P_{k-1}(2t - 1) dt, so int_0^1 phi_k' phi_l' ds = delta_kl
-    P = np.polynomial.legendre.legvander(x, N)           # P_0 .. P_N at the nodes
-    phi = np.empty((N, nq))
-    phi[0] = s
-    for k in range(2, N + 1):
-        phi[k - 1] = np.sqrt(2 * k - 1) * 0.5 * (P[:, k] - P[:, k - 2]) / (2 * k - 1)
-    tip_phi = np.zeros(N)
-    tip_phi[0] = 1.0                                     # phi_k(1) = 0 for k >= 2
-    M = (phi * w) @ phi.T
-    G = np.linalg.cholesky(M)
-    Gi = np.linalg.inv(G)                                 # psi = Gi phi: int psi psi^T = I
-    psi = Gi @ phi
-    K = Gi @ Gi.T
-    for a in (s, w, psi, K):
-        a.setflags(write=False)
-    return Basis(N, s, w, psi, K, Gi @ tip_phi)
-
-
-def _modes_for(Phi: float) -> int:
-    """Modes per rod to start with for a rod with ``lambda L = Phi`` (features of width
-    ~ 1/lambda; measured: about ``3 Phi`` modes give the smallest eigenvalue to 1e-4, and the
-    refinement adds modes where the two resolutions disagree)."""
-    n = max(N_MIN, 2 * int(math.ceil(Phi)) + 8)
-    return int(min(N_MAX, 8 * math.ceil(n / 8)))
-
-
-def _coarse(N: int) -> int:
-    """The nested coarser resolution used to estimate the error at ``N`` modes."""
-    return N - max(6, N // 5)
-
-
-# ---- assembly (compiled) ------------------------------------------------------------------------
+# ================================================================================================
+# the closed form
+# ================================================================================================
 @njit
-def _assemble(theta, force, ell, e, arm, clamped, psis, ws, Ks, tips, Q, C) -> None:
-    """The second variation ``Q`` (p, p) and the constraints ``C`` (m, p) of one equilibrium in
-    the metric-orthonormal coordinates (rod i's modes scaled by ``sqrt(ell_i)``, then the pose).
+def rod_terms(a, b, m0, clamped_tip, D, res) -> None:
+    """One unit rod of base wrench ``(a, b, m0)`` (clamp frame; module docstring), with a tip
+    moment (``clamped_tip``) or of the pinned family (``m(1) = 0`` by construction):
+    ``D`` (4, 3) = d(x, y, theta, m)(1)/d(a, b, m0); ``res`` (7,) = [lambda L, u(1), u'(1),
+    index of the clamped-clamped base (J4), index of the free base (J5), flags, relative error
+    of ``D``]."""
+    out = np.empty(NQ)
+    g = np.empty((NQ, 3))
+    wrench_eval(a, b, m0, out, g)
+    flag = 0
+    for c in range(3):
+        D[0, c] = g[X, c]
+        D[1, c] = g[Y, c]
+        D[2, c] = g[TH, c]
+        D[3, c] = g[ML, c]
+        for r in range(4):
+            if not np.isfinite(D[r, c]):
+                flag |= F_NONFINITE
+    u1 = D[2, 2]
+    up1 = D[3, 2]
+    _, c, sh, R = _half_angles(a, b)
+    lam = math.sqrt(R)
+    idx_cc = 0
+    idx_free = 0
+    kp2 = 1.0
+    if lam >= LAM_SAFE:
+        half = 0.5 * abs(m0)
+        if half < lam * sh:
+            # libration: m = 2 lambda k cn(u), u = F(phi_1) + lambda s (rod/wrench.py)
+            mu = m0 / (2.0 * lam)
+            k2 = c * c + mu * mu
+            kp2 = (sh - abs(mu)) * (sh + abs(mu))
+            if not k2 >= K2_MIN:
+                flag |= F_STRAIGHT
+            phi1 = math.atan2(c, mu)
+            K = rf(0.0, kp2, 1.0)
+            F1 = _F(phi1, kp2, K)
+            ue = F1 + lam
+            # the zeros of m at u = (2 j + 1) K strictly inside (F1, ue)
+            lo = math.floor((F1 / K - 1.0) / 2.0) + 1
+            bz = abs(math.cos(phi1)) < INFL_TOL
+            if bz and lo == round((F1 / K - 1.0) / 2.0):
+                lo += 1
+            s0 = 1.0 if math.cos(phi1) > 0.0 else -1.0                 # sign of m(0)
+            s1 = 1.0 if (ue + K) % (4.0 * K) < 2.0 * K else -1.0       # sign of m(1) = sign cn(ue)
+            sp1 = -1.0 if ue % (4.0 * K) < 2.0 * K else 1.0            # sign of m'(1) = -2 lambda^2 k sn dn
+            if clamped_tip:
+                hi = math.ceil((ue / K - 1.0) / 2.0) - 1
+                jz = round((ue / K - 1.0) / 2.0)
+                tz = abs(ue - (2.0 * jz + 1.0) * K) * math.sqrt(kp2) < INFL_TOL   # |cos phi| ~ k' |du|
+                if tz and hi == jz:
+                    hi -= 1
+                J = max(0, hi - lo + 1)
+                if bz and tz:
+                    flag |= F_ENDS
+                su = 1.0 if u1 > 0.0 else -1.0
+                if tz:
+                    su = -s0 * sp1             # (J3) with m(1) = 0: u(1) = -m0 / m'(1)
+                if bz or tz:
+                    idx_cc = J
+                else:
+                    idx_cc = J - 1 + (1 if su * s1 * s0 > 0.0 else 0)
+                idx_free = idx_cc + (1 if su * up1 < 0.0 else 0)
+            else:
+                # the pinned tip is a zero of m: J counts those before it
+                hi = math.ceil((ue / K - 2.0) / 2.0) - 1
+                J = max(0, hi - lo + 1)
+                idx_cc = J
+                if bz:
+                    idx_free = J + 1           # u ~ m: u(1) = 0, the Prüfer angle is (J + 1) pi
+                else:
+                    idx_free = J + (1 if -s0 * sp1 * up1 < 0.0 else 0)
+        else:
+            # rotation: m keeps its sign, u = m m0 int m^-2 > 0 has no zero
+            Ke2 = lam * lam * c * c + 0.25 * m0 * m0
+            kp2 = (half - lam * sh) * (half + lam * sh) / Ke2
+            idx_free = 1 if up1 < 0.0 else 0
+    res[0] = lam
+    res[1] = u1
+    res[2] = up1
+    res[3] = idx_cc
+    res[4] = idx_free
+    res[5] = flag
+    res[6] = 1e-15 * (1.0 + 1.0 / math.sqrt(max(kp2, 1e-300)))
 
-    ``theta`` (3, Nq) world tangent angles at the nodes (rod i: its first ``len(ws[i])``),
-    ``force`` (3, 2) tip forces (in F_ref), ``ell``, ``e`` (3,) lengths (L_ref) and stiffnesses
-    (EI_ref), ``arm`` (3, 2) ``B_i - P`` (L_ref); rod i in its own basis ``psis[i]``, ``ws[i]``,
-    ``Ks[i]``, ``tips[i]`` (:func:`basis`).
+
+@njit
+def _rotated(G00, G01, G10, G11, ca, sa):
+    """``R G R^T`` (symmetric part) for the rotation by the clamp angle."""
+    Gs = 0.5 * (G01 + G10)
+    r00 = ca * ca * G00 - 2.0 * ca * sa * Gs + sa * sa * G11
+    r11 = sa * sa * G00 + 2.0 * ca * sa * Gs + ca * ca * G11
+    r01 = ca * sa * (G00 - G11) + (ca * ca - sa * sa) * Gs
+    return r00, r01, r11
+
+
+@njit
+def bordered(ch, z, alpha, ell, e, force, arm, clamped, B) -> tuple[int, float, int, int]:
+    """The closed-form index of one equilibrium (Eq. M1).
+
+    ``ch`` (3,) charts, ``z`` (3, 3) chart coordinates, ``alpha`` (3,) clamp angles, ``ell``, ``e``
+    (3,) lengths and stiffnesses (L_ref, EI_ref), ``force`` (3, 2) tip forces (world, F_ref),
+    ``arm`` (3, 2) ``B_i - P`` (L_ref), ``clamped`` (3,); ``B`` (12, 12) receives the bordered
+    matrix.  Returns (index, gap: the equilibrated B's smallest |eigenvalue| over its error
+    bound, flags, sign of det B).
     """
-    Q[:, :] = 0.0
-    C[:, :] = 0.0
-    ip = psis[0].shape[0] + psis[1].shape[0] + psis[2].shape[0]
-    row = 0
-    c0 = 0
+    q = np.empty(NQ)
+    gq = np.empty((NQ, 3))
+    D = np.empty((4, 3))
+    res = np.empty(7)
+    terms = np.empty((3, 7))
+    Ds = np.empty((3, 4, 3))
+    use_cc = np.zeros(3, np.bool_)
+    flag = 0
+    ny = 3
     for i in range(3):
-        psi = psis[i]
-        w = ws[i]
-        K = Ks[i]
-        tip = tips[i]
-        N = psi.shape[0]
-        nq = psi.shape[1]
-        sl = math.sqrt(ell[i])
-        kf = e[i] / (ell[i] * ell[i])
-        for a in range(N):
-            for b in range(N):
-                Q[c0 + a, c0 + b] = kf * K[a, b]
-        for j in range(nq):
-            q = w[j] * (force[i, 0] * math.cos(theta[i, j]) + force[i, 1] * math.sin(theta[i, j]))
-            for a in range(N):
-                qa = q * psi[a, j]
-                for b in range(a, N):
-                    Q[c0 + a, c0 + b] += qa * psi[b, j]
-        for a in range(N):
-            for b in range(a + 1, N):
-                Q[c0 + b, c0 + a] = Q[c0 + a, c0 + b]
-        # tip position: ell int n_perp eta ds_hat = dP + dtheta perp(arm)
-        for j in range(nq):
-            nx = -math.sin(theta[i, j]) * w[j] * sl
-            ny = math.cos(theta[i, j]) * w[j] * sl
-            for a in range(N):
-                C[row, c0 + a] += nx * psi[a, j]
-                C[row + 1, c0 + a] += ny * psi[a, j]
-        C[row, ip] = -1.0
-        C[row + 1, ip + 1] = -1.0
-        C[row, ip + 2] = arm[i, 1]       # -perp(arm)_x = +arm_y
-        C[row + 1, ip + 2] = -arm[i, 0]  # -perp(arm)_y = -arm_x
-        row += 2
-        if clamped[i]:
-            for a in range(N):
-                C[row, c0 + a] = tip[a] / sl
-            C[row, ip + 2] = -1.0
-            row += 1
-        Q[ip + 2, ip + 2] -= force[i, 0] * arm[i, 0] + force[i, 1] * arm[i, 1]
-        c0 += N
+        eval_rod(ch[i], z[i], q, gq)
+        rod_terms(q[FX], q[FY], q[M0], clamped[i], D, res)
+        terms[i, :] = res
+        Ds[i] = D
+        flag |= int(res[5])
+        use_cc[i] = abs(res[1]) >= abs(res[2])
+        if use_cc[i] and not clamped[i]:
+            ny += 1
+    nrow = 0
+    for i in range(3):
+        nrow += 3 if (clamped[i] and not use_cc[i]) else 2
+    n = ny + nrow
+    dB = np.zeros((12, 12))
+    B[:, :] = 0.0
+    for i in range(3):
+        B[2, 2] -= force[i, 0] * arm[i, 0] + force[i, 1] * arm[i, 1]
+    dB[2, 2] = 1e-15 * abs(B[2, 2])
+    base = 0
+    t = 3
+    row = ny
+    for i in range(3):
+        D = Ds[i]
+        u1 = terms[i, 1]
+        up1 = terms[i, 2]
+        ep = terms[i, 6]
+        ca, sa = math.cos(alpha[i]), math.sin(alpha[i])
+        li = ell[i]
+        sc = li * li * li / e[i]
+        # (S2): C eta0 + E y = 0 with -(I, perp a_i) on dq
+        B[row, 0] = -1.0
+        B[row + 1, 1] = -1.0
+        B[row, 2] = arm[i, 1]
+        B[row + 1, 2] = -arm[i, 0]
+        if use_cc[i]:
+            base += int(terms[i, 3])
+            G00 = D[0, 0] - D[0, 2] * D[2, 0] / u1      # (M2)
+            G01 = D[0, 1] - D[0, 2] * D[2, 1] / u1
+            G10 = D[1, 0] - D[1, 2] * D[2, 0] / u1
+            G11 = D[1, 1] - D[1, 2] * D[2, 1] / u1
+            aG = ep * (abs(D[0, 0]) + abs(D[0, 1]) + abs(D[1, 0]) + abs(D[1, 1])
+                       + (abs(D[0, 2]) + abs(D[1, 2])) * (abs(D[2, 0]) + abs(D[2, 1])) / abs(u1))
+            # the tip rotation: xi = u/u(1), Q(xi) = u'(1)/u(1), delta r(xi) = (dr/dm0)/u(1)
+            cx = li * (ca * D[0, 2] - sa * D[1, 2]) / u1
+            cy = li * (sa * D[0, 2] + ca * D[1, 2]) / u1
+            ytt = e[i] / li * up1 / u1
+            col = 2 if clamped[i] else t
+            B[row, col] += cx
+            B[row + 1, col] += cy
+            B[col, col] += ytt
+            dB[row, col] += 2.0 * ep * (abs(cx) + abs(cy))
+            dB[row + 1, col] += 2.0 * ep * (abs(cx) + abs(cy))
+            dB[col, col] += 2.0 * ep * abs(ytt)
+            if not clamped[i]:
+                t += 1
+            nr = 2
+        else:
+            base += int(terms[i, 4])
+            aG = ep * (abs(D[0, 0]) + abs(D[0, 1]) + abs(D[1, 0]) + abs(D[1, 1])
+                       + (abs(D[0, 2]) + abs(D[1, 2])) * (abs(D[3, 0]) + abs(D[3, 1])) / abs(up1))
+            G00 = D[0, 0] - D[0, 2] * D[3, 0] / up1      # compliance at a held tip moment
+            G01 = D[0, 1] - D[0, 2] * D[3, 1] / up1
+            G10 = D[1, 0] - D[1, 2] * D[3, 0] / up1
+            G11 = D[1, 1] - D[1, 2] * D[3, 1] / up1
+            nr = 2
+            if clamped[i]:
+                # the full tip compliance d(x, y, theta)/d(f_x, f_y, m(1)) and eta(1) = dtheta_P
+                C20 = D[2, 0] - D[2, 2] * D[3, 0] / up1
+                C21 = D[2, 1] - D[2, 2] * D[3, 1] / up1
+                s2 = li * li / e[i]
+                gx = 0.5 * s2 * ((ca * D[0, 2] - sa * D[1, 2]) / up1 + (ca * C20 - sa * C21))
+                gy = 0.5 * s2 * ((sa * D[0, 2] + ca * D[1, 2]) / up1 + (sa * C20 + ca * C21))
+                aC = ep * (abs(D[2, 0]) + abs(D[2, 1]) + abs(D[2, 2]) * (1.0 + abs(D[3, 0]) + abs(D[3, 1]))
+                           / abs(up1))
+                B[row + 2, row] = -gx
+                B[row + 2, row + 1] = -gy
+                B[row, row + 2] = -gx
+                B[row + 1, row + 2] = -gy
+                B[row + 2, row + 2] = -li / e[i] * D[2, 2] / up1
+                B[row + 2, 2] = -1.0
+                dB[row + 2, row + 2] = li / e[i] * aC
+                dB[row + 2, row] = s2 * (aG + aC)
+                dB[row + 2, row + 1] = s2 * (aG + aC)
+                nr = 3
+        r00, r01, r11 = _rotated(G00, G01, G10, G11, ca, sa)
+        B[row, row] = -sc * r00
+        B[row + 1, row + 1] = -sc * r11
+        B[row, row + 1] = -sc * r01
+        B[row + 1, row] = -sc * r01
+        dB[row, row] = sc * aG
+        dB[row + 1, row + 1] = sc * aG
+        dB[row + 1, row] = sc * aG
+        row += nr
+    for r in range(ny, n):
+        for c in range(ny):
+            B[c, r] = B[r, c]
+    for r in range(n):
+        for c in range(r):
+            v = max(dB[r, c], dB[c, r])
+            dB[r, c] = v
+            dB[c, r] = v
+    # equilibrate (Ruiz: symmetric scaling by the rows' maxima; congruent, same inertia)
+    Bn = B[:n, :n].copy()
+    d = np.empty(n)
+    for _ in range(6):
+        for r in range(n):
+            mx = 0.0
+            for c in range(n):
+                mx = max(mx, abs(Bn[r, c]))
+            d[r] = 1.0 / math.sqrt(mx) if mx > 0.0 else 1.0
+        for r in range(n):
+            for c in range(n):
+                Bn[r, c] *= d[r] * d[c]
+                dB[r, c] *= d[r] * d[c]
+    ev = np.linalg.eigvalsh(Bn)
+    neg = 0
+    mn = np.inf
+    mx = 0.0
+    for v in ev:
+        if v < 0.0:
+            neg += 1
+        mn = min(mn, abs(v))
+        mx = max(mx, abs(v))
+    s = 0.0
+    for r in range(n):
+        for c in range(n):
+            s += dB[r, c] * dB[r, c]
+    err = math.sqrt(s) + 1e-14 * mx
+    gap = mn / err
+    if not gap >= GAP_SAFETY:
+        flag |= F_GAP
+    return base + neg - nrow, gap, flag, -1 if neg % 2 else 1
 
 
 @njit
-def _angles(chart, z, alpha, s, out) -> None:
-    """World tangent angles of rods (n, 3) at unit arc lengths ``s``: ``out`` (n, 3, len(s))."""
-    th = np.empty(s.shape[0])
+def _closed_batch(ch, z, alpha, ell, e, force, arm, clamped, idx, gap, flag, sign) -> None:
+    B = np.empty((12, 12))
     for k in range(z.shape[0]):
-        for i in range(3):
-            tangents(chart[k, i], z[k, i], s, th)
-            for j in range(s.shape[0]):
-                out[k, i, j] = alpha[k, i] + th[j]
+        idx[k], gap[k], flag[k], sign[k] = bordered(ch[k], z[k], alpha[k], ell[k], e, force[k], arm[k], clamped, B)
 
 
-@njit(fastmath={"reassoc", "contract"})
-def _project(Q, C, B) -> int:
-    """``Q`` (p, p) restricted to the null space of ``C`` (m, p) in an orthonormal basis: written
-    to ``B[:p - r, :p - r]``; returns the rank ``r`` of the constraints.  ``Q`` is overwritten.
-
-    Rank-revealing: the constraints are the right singular vectors of ``C`` with singular
-    value above ``RANK_RTOL`` times the largest (a vacuous constraint, such as a straight rod's
-    axial one, is dropped).  Their orthogonal complement is spanned by the trailing columns of
-    the Householder reflectors of their QR factorisation, so the projected matrix is the
-    trailing block of ``H^T Q H``, updated in place at ``O(m p^2)`` cost.
-    """
-    m, p = C.shape
-    _, sv, Vt = np.linalg.svd(C, full_matrices=False)
-    r = 0
-    for j in range(sv.shape[0]):
-        if sv[j] > RANK_RTOL * sv[0]:
-            r += 1
-    V = np.ascontiguousarray(Vt[:r].T)        # (p, r) orthonormal constraint directions
-    v = np.empty(p)
-    wv = np.empty(p)
-    for j in range(r):
-        nrm = 0.0
-        for a in range(j, p):
-            nrm += V[a, j] * V[a, j]
-        nrm = math.sqrt(nrm)
-        alpha = -nrm if V[j, j] >= 0.0 else nrm
-        for a in range(j, p):
-            v[a] = V[a, j]
-        v[j] -= alpha
-        vv = 0.0
-        for a in range(j, p):
-            vv += v[a] * v[a]
-        if vv == 0.0:
-            continue
-        tau = 2.0 / vv
-        for c in range(j + 1, r):             # the remaining constraint columns
-            t = 0.0
-            for a in range(j, p):
-                t += v[a] * V[a, c]
-            t *= tau
-            for a in range(j, p):
-                V[a, c] -= t * v[a]
-        # Q[j:, j:] <- P Q[j:, j:] P with P = I - tau v v^T: Q - v q^T - q v^T
-        kk = 0.0
-        for a in range(j, p):
-            t = 0.0
-            for b in range(j, p):
-                t += Q[a, b] * v[b]
-            wv[a] = tau * t
-            kk += v[a] * wv[a]
-        kk *= 0.5 * tau
-        for a in range(j, p):
-            wv[a] -= kk * v[a]
-        for a in range(j, p):
-            for b in range(j, p):
-                Q[a, b] -= v[a] * wv[b] + wv[a] * v[b]
-    for a in range(p - r):
-        for b in range(a, p - r):
-            t = 0.5 * (Q[r + a, r + b] + Q[r + b, r + a])
-            B[a, b] = t
-            B[b, a] = t
-    return r
-
-
-
-
-@njit
-def _spectra(ch, z, alpha, force, ell, e, arm, clamped, psis, ws, Ks, tips, ss, coarse, ev, evc, scale) -> None:
-    """Per equilibrium ``k``: the tangent angles at the quadrature
-    nodes, the second variation and its constraints (:func:`_assemble`), and the lowest
-    eigenvalues on the admissible subspace (:func:`_project`) with rod i in its basis of
-    ``N_i`` modes (``ev[k]``) and in the nested first ``coarse[i]`` of them (``evc[k]``);
-    ``scale[k]`` is the largest diagonal entry."""
-    n = z.shape[0]
-    nq = max(ss[0].shape[0], max(ss[1].shape[0], ss[2].shape[0]))
-    p = psis[0].shape[0] + psis[1].shape[0] + psis[2].shape[0] + 3
-    m = 6
-    for i in range(3):
-        if clamped[i]:
-            m += 1
-    pc = coarse[0] + coarse[1] + coarse[2] + 3
-    keep = np.empty(pc, np.int64)
-    a0 = 0
-    f0 = 0
-    for i in range(3):
-        for a in range(coarse[i]):
-            keep[a0 + a] = f0 + a
-        a0 += coarse[i]
-        f0 += psis[i].shape[0]
-    for a in range(3):
-        keep[pc - 3 + a] = p - 3 + a
-    for k in range(n):
-        theta = np.empty((3, nq))
-        Q = np.empty((p, p))
-        C = np.empty((m, p))
-        Qc = np.empty((pc, pc))
-        Cc = np.empty((m, pc))
-        for i in range(3):
-            th = np.empty(ss[i].shape[0])
-            tangents(ch[k, i], z[k, i], ss[i], th)
-            for j in range(th.shape[0]):
-                theta[i, j] = alpha[k, i] + th[j]
-        _assemble(theta, force[k], ell[k], e, arm[k], clamped, psis, ws, Ks, tips, Q, C)
-        sc = 0.0
-        for a in range(p):
-            sc = max(sc, abs(Q[a, a]))
-        scale[k] = sc
-        for a in range(pc):
-            for b in range(pc):
-                Qc[a, b] = Q[keep[a], keep[b]]
-            for r in range(m):
-                Cc[r, a] = C[r, keep[a]]
-        B = np.empty((p, p))
-        r = _project(Q, C, B)
-        e1 = np.linalg.eigvalsh(B[:p - r, :p - r].copy())
-        ev[k, :] = e1[:p - m]
-        r = _project(Qc, Cc, B)
-        e2 = np.linalg.eigvalsh(B[:pc - r, :pc - r].copy())
-        evc[k, :] = e2[:pc - m]
-
-
-def _spectrum(system: System, X: NDArray, charts: NDArray, N: tuple[int, int, int], coarse: tuple[int, int, int]
-              ) -> tuple[NDArray, NDArray, NDArray]:
-    """Eigenvalues (n, p - m), ascending, of the discretised second variation with ``N[i]`` modes
-    for rod i, the scale of its diagonal, and the eigenvalues with the first ``coarse[i]`` modes of
-    each rod (a nested subspace: the same quadrature, a sub-basis); compiled per equilibrium
-    (:func:`_spectra`)."""
-    bs = [basis(int(v)) for v in N]
-    n = len(X)
+# ================================================================================================
+# arrays of equilibria
+# ================================================================================================
+def _arrays(system: System, X: NDArray, charts: NDArray) -> dict[str, NDArray]:
+    """What the kernels read for equilibria ``X`` in ``charts``."""
     lay = system.layout
+    n = len(X)
     z = np.zeros((n, 3, 3))
-    ch = np.array(charts, dtype=np.int64)
     for i in range(3):
         zi = X[:, lay.rod[i]]
         z[:, i, :zi.shape[1]] = zi
+    _, alpha, L = system.clamps(X[:, lay.inputs])
+    q, _ = system.unit_rods(X, charts)
+    force = (system.EI[None] / L**2)[..., None] * rotate(q[..., [FX, FY]], alpha) / system.F_ref
+    P = X[:, lay.pose]
+    arm = (system.platform_points(P) - P[:, None, :2]) / system.L_ref
+    return {"z": z, "ch": np.ascontiguousarray(charts, dtype=np.int64), "alpha": np.ascontiguousarray(alpha),
+            "ell": np.ascontiguousarray(L / system.L_ref), "e": np.asarray(system.EI / system.EI_ref, dtype=float),
+            "force": np.ascontiguousarray(force), "arm": np.ascontiguousarray(arm),
+            "clamped": np.asarray(system.clamped, dtype=np.bool_), "q": q}
+
+
+def closed_form_index(system: System, X: NDArray, charts: NDArray
+                      ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]]:
+    """The closed-form index of equilibria ``X`` (n, n_unknowns) in ``charts`` (n, 3) (Eq. M1).
+
+    Parameters
+    ----------
+    system : System
+        The mechanism's equation system.
+    X : ndarray (n, n_unknowns)
+        Equilibria.
+    charts : ndarray (n, 3)
+        Their rods' charts.
+
+    Returns
+    -------
+    index : (n,) int
+        Number of negative directions of the second variation (meaningful where ``flags == 0``).
+    gap : (n,) float
+        Smallest |eigenvalue| of the equilibrated bordered matrix over its error bound.
+    flags : (n,) int
+        Why the closed form is not accepted (0: accepted; bits ``F_*``).
+    sign : (n,) int
+        Sign of the bordered determinant.
+    """
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    charts = np.atleast_2d(np.asarray(charts, dtype=np.int64))
+    n = len(X)
+    idx = np.zeros(n, np.int64)
+    gap = np.zeros(n)
+    flag = np.zeros(n, np.int64)
+    sign = np.zeros(n, np.int64)
+    if n:
+        a = _arrays(system, X, charts)
+        with single_threaded_blas():
+            _closed_batch(a["ch"], a["z"], a["alpha"], a["ell"], a["e"], a["force"], a["arm"], a["clamped"], idx,
+                          gap, flag, sign)
+    return idx, gap, flag, sign
+
+
+# ================================================================================================
+# the margin (banded discretisation, :mod:`.second_variation`)
+# ================================================================================================
+@dataclass(frozen=True)
+class Eigenpairs:
+    """The lowest eigenvector of the discretised second variation of ``n`` equilibria, to start
+    the next computation along a continuation: ``elements`` (n, 3) per rod, ``rods`` (n, 3,
+    nmax) the rods' coefficients, ``pose`` (n, 3), ``valid`` (n,)."""
+
+    elements: NDArray[np.int64]
+    rods: NDArray[np.float64]
+    pose: NDArray[np.float64]
+    valid: NDArray[np.bool_]
+
+    def take(self, rows: NDArray) -> "Eigenpairs":
+        """The pairs of rows ``rows``."""
+        return Eigenpairs(self.elements[rows], self.rods[rows], self.pose[rows], self.valid[rows])
+
+
+@njit
+def _fe_batch(ch, z, alpha, ell, e, fu, force, arm, clamped, E, c0, xg, wg, sh, guess, vr_all, vp_all,
+              mu, res, idx, nfs, want_index) -> None:
+    ng = xg.shape[0]
+    T = np.zeros((3, 3, 3))
+    Pp = np.zeros((3, 3))
+    mi = np.empty(3, np.int64)
+    code = np.empty(3, np.int64)
+    gn = np.zeros((3, 2))
+    for k in range(z.shape[0]):
+        emax = 0
+        for i in range(3):
+            emax = max(emax, E[k, i])
+        th = np.empty((3, emax * ng))
+        for i in range(3):
+            rod_nodes(ch[k, i], z[k, i], E[k, i], xg, th[i, :E[k, i] * ng])
+        Ptt = 0.0
+        L0 = 0.0
+        for i in range(3):
+            Ptt -= force[k, i, 0] * arm[k, i, 0] + force[k, i, 1] * arm[k, i, 1]
+            lam2 = math.hypot(fu[k, i, 0], fu[k, i, 1])
+            # lower bound of the spectrum: Q_i >= (e/l)(pi^2/4 - lambda^2) int eta^2 (Poincaré)
+            L0 = min(L0, e[i] / (ell[k, i] * ell[k, i]) * (0.25 * math.pi * math.pi - lam2))
+            mi[i] = 3 if clamped[i] else 2
+            code[i] = 1 if clamped[i] else 0
+            T[i, :, :] = 0.0
+            T[i, 0, 0] = -1.0
+            T[i, 1, 1] = -1.0
+            T[i, 0, 2] = arm[k, i, 1]
+            T[i, 1, 2] = -arm[k, i, 0]
+            if clamped[i]:
+                T[i, 2, 2] = -1.0
+        Pp[2, 2] = Ptt
+        L0 = min(L0, Ptt) - 1.0
+        vr = vr_all[k, :, :emax * P_FINE]
+        vp = vp_all[k]
+        mu[k], res[k], idx[k], nfs[k] = fe_stability(th, fu[k], alpha[k], ell[k], e, E[k], mi, code, gn, T, Pp, 3,
+                                                     3, xg, wg, sh, L0, c0[k], vr, vp, guess[k], want_index)
+
+
+def _margins(system: System, X: NDArray, charts: NDArray, c0: NDArray, want_index: bool,
+             guess: Eigenpairs | None = None, a: dict | None = None
+             ) -> tuple[NDArray, NDArray, NDArray, Eigenpairs]:
+    """Margin, resolution, discretised index (with ``want_index``) and eigenpairs of equilibria."""
+    a = _arrays(system, X, charts) if a is None else a
+    n = len(X)
+    ch = a["ch"].copy()
+    z = a["z"].copy()
+    for i in range(3):
         seam = ch[:, i] == CHART_SEAM
-        if np.any(seam):  # the profile is evaluated in the unified chart
-            v, ph = seam_to_chart(zi[seam, 0], zi[seam, 1])
+        if np.any(seam):  # the tangent angles are evaluated in the unified chart
+            v, ph = seam_to_chart(z[seam, i, 0], z[seam, i, 1])
             z[seam, i, 0], z[seam, i, 1] = v, ph
             ch[seam, i] = CHART_UNIFIED
-    _, alpha, L = system.clamps(X[:, lay.inputs])
-    w = system.rod_world(X, charts)
-    force = np.ascontiguousarray(w["force"] / system.F_ref)
-    arm = (system.platform_points(X[:, lay.pose]) - X[:, None, lay.pose.start:lay.pose.start + 2]) / system.L_ref
-    ell = L / system.L_ref
-    e = system.EI / system.EI_ref
-    clamped = np.asarray(system.clamped, dtype=np.bool_)
-    m = 6 + int(np.count_nonzero(clamped))
-    ev = np.empty((n, sum(N) + 3 - m))
-    evc = np.empty((n, sum(coarse) + 3 - m))
-    scale = np.empty(n)
-    _spectra(ch, z, np.ascontiguousarray(alpha, dtype=float), force, np.ascontiguousarray(ell, dtype=float),
-             np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(arm), clamped,
-             tuple(b.psi for b in bs), tuple(b.w for b in bs), tuple(b.K for b in bs), tuple(b.tip for b in bs),
-             tuple(b.s for b in bs), np.array(coarse, dtype=np.int64), ev, evc, scale)
-    return ev, scale, evc
+    E = elements_for(a["q"][..., PHI])
+    use = np.zeros(n, bool)
+    if guess is not None:
+        # the previous eigenvector starts the iteration where the elements are the same
+        use = guess.valid & np.all(guess.elements == E, axis=1)
+        E = np.where(use[:, None], guess.elements, E)
+    nmax = int(E.max()) * P_FINE if n else P_FINE
+    vr = np.zeros((n, 3, nmax))
+    vp = np.zeros((n, 3))
+    if guess is not None and np.any(use):
+        w = min(nmax, guess.rods.shape[2])
+        vr[use, :, :w] = guess.rods[use, :, :w]
+        vp[use] = guess.pose[use]
+    xg, wg, sh = element_rule(P_FINE)
+    mu = np.empty(n)
+    res = np.empty(n)
+    idx = np.empty(n, np.int64)
+    nfs = np.empty(n, np.int64)
+    if n:
+        with single_threaded_blas():
+            _fe_batch(ch, z, a["alpha"], a["ell"], a["e"], np.ascontiguousarray(a["q"][..., [FX, FY]]), a["force"],
+                      a["arm"], a["clamped"], E, np.asarray(c0, dtype=np.int64), xg, wg, sh, use, vr, vp, mu, res,
+                      idx, nfs, want_index)
+    ok = np.isfinite(mu)
+    return mu, res, idx, Eigenpairs(E, vr, vp, ok)
 
 
+# ================================================================================================
+# the public entry
+# ================================================================================================
 @dataclass(frozen=True)
 class StabilityArrays:
     """Stability of ``n`` equilibria (see the module docstring).
@@ -352,33 +573,50 @@ class StabilityArrays:
     Attributes
     ----------
     stable : (n,) int8: 1 stable, 0 unstable, -1 undecided.
-    margin : (n,) smallest eigenvalue of the second variation (EI_ref / L_ref).
-    resolution : (n,) its guaranteed resolution.
-    index : (n,) number of negative eigenvalues, -1 where unresolved.
-    modes : (n,) Legendre modes of the final resolution (of the rod with the most).
+    margin : (n,) smallest eigenvalue of the second variation (EI_ref / L_ref); ``NaN`` where
+        it was not computed.
+    resolution : (n,) its guaranteed resolution (``NaN`` where not computed).
+    index : (n,) number of negative directions, -1 where unresolved.
+    method : (n,) ``CLOSED_FORM`` (0) or ``DISCRETISED`` (1): what decided the verdict.
+    flags : (n,) why the closed form was not accepted (0 where it was).
+    gap : (n,) the closed form's gap (smallest |eigenvalue| of the equilibrated bordered matrix
+        over its error bound).
+    sign : (n,) sign of the bordered determinant.
+    pairs : Eigenpairs or None
+        The lowest eigenvectors where margins were computed.
     """
 
     stable: NDArray[np.int8]
     margin: NDArray[np.float64]
     resolution: NDArray[np.float64]
     index: NDArray[np.int64]
-    modes: NDArray[np.int64]
+    method: NDArray[np.int8]
+    flags: NDArray[np.int64]
+    gap: NDArray[np.float64]
+    sign: NDArray[np.int64]
+    pairs: Eigenpairs | None = None
 
     def item(self, i: int) -> Stability:
         """The :class:`~flexkin.results.Stability` of equilibrium ``i``."""
         st = int(self.stable[i])
         note = ""
         if st < 0:
-            note = (f"undecided: the smallest eigenvalue of the second variation, {self.margin[i]:.3g}, is below "
-                    f"the resolution {self.resolution[i]:.2g} reached with {self.modes[i]} modes per rod (typical "
-                    f"of a rod near the separatrix: a loop held in tension or a taut rod)")
+            why = ", ".join(t for b, t in _WHY.items() if int(self.flags[i]) & b) or "ill-conditioned"
+            note = (f"undecided: the closed form is not conclusive here ({why}) and the smallest eigenvalue of the "
+                    f"discretised second variation, {self.margin[i]:.3g}, is below its resolution "
+                    f"{self.resolution[i]:.2g} (typical of a rod near the separatrix: a loop held in tension or a "
+                    f"taut rod)")
         idx = int(self.index[i])
         return Stability(None if st < 0 else bool(st), float(self.margin[i]), None if idx < 0 else idx,
                          float(self.resolution[i]), note)
 
 
-def mechanism_stability(system: System, X: NDArray, charts: NDArray) -> StabilityArrays:
+def mechanism_stability(system: System, X: NDArray, charts: NDArray, margin: bool = False,
+                        guess: Eigenpairs | None = None) -> StabilityArrays:
     """Stability of equilibria ``X`` (n, n_unknowns) in ``charts`` (n, 3), actuators locked.
+
+    The verdict and the index come from the closed form (module docstring); where it is not
+    conclusive, from the discretised second variation.
 
     Parameters
     ----------
@@ -388,6 +626,10 @@ def mechanism_stability(system: System, X: NDArray, charts: NDArray) -> Stabilit
         Equilibria.
     charts : ndarray (n, 3)
         Their rods' charts.
+    margin : bool
+        Also compute every equilibrium's margin (else only where the closed form falls back).
+    guess : Eigenpairs, optional
+        Eigenvectors of nearby equilibria (row by row) to start the margin computation from.
 
     Returns
     -------
@@ -396,41 +638,63 @@ def mechanism_stability(system: System, X: NDArray, charts: NDArray) -> Stabilit
     X = np.atleast_2d(np.asarray(X, dtype=float))
     charts = np.atleast_2d(np.asarray(charts, dtype=np.int64))
     n = len(X)
-    out_m = np.zeros(n)
-    out_r = np.full(n, np.inf)
-    out_i = np.full(n, -1, np.int64)
-    out_n = np.zeros(n, np.int64)
-    if n == 0:
-        return StabilityArrays(np.zeros(0, np.int8), out_m, out_r, out_i, out_n)
-    q, _ = system.unit_rods(X, charts)
-    # modes per rod from its own lambda L
-    N = np.vectorize(lambda v: _modes_for(float(v)), otypes=[np.int64])(np.nan_to_num(q[:, :, PHI]))
-    todo = np.arange(n)
-    with single_threaded_blas():
-        while todo.size:
-            keys, inv = np.unique(N[todo], axis=0, return_inverse=True)
-            for g, Nv in enumerate(keys):
-                grp = todo[inv.ravel() == g]
-                Nt = tuple(int(v) for v in Nv)
-                ev2, sc2, ev1 = _spectrum(system, X[grp], charts[grp], Nt, tuple(_coarse(v) for v in Nt))
-                k = min(ev1.shape[1], ev2.shape[1], 6)
-                floor = ROUNDOFF * sc2
-                err = 2.0 * np.abs(ev2[:, :k] - ev1[:, :k]) + floor[:, None]
-                res = err[:, 0]
-                mu = ev2[:, 0]
-                out_m[grp], out_r[grp], out_n[grp] = mu, res, max(Nt)
-                near = np.abs(ev2[:, :k]) <= 3.0 * err
-                neg = np.sum(ev2 < 0.0, axis=1)
-                out_i[grp] = np.where(np.any(near, axis=1), -1, neg)
-            # refine where the verdict or the index is undecided, or the margin is not known to 1 %
-            ok = ((np.abs(out_m[todo]) > 3.0 * out_r[todo]) & (out_r[todo] <= 1e-2 * (1.0 + np.abs(out_m[todo])))
-                  & ((out_i[todo] >= 0) | (out_m[todo] > 3.0 * out_r[todo])))
-            todo = todo[~ok & np.any(N[todo] < N_MAX, axis=1)]
-            if todo.size:
-                N[todo] = np.minimum(N_MAX, 8 * np.ceil(1.5 * N[todo] / 8)).astype(np.int64)
-    stable = np.where(out_m > 3.0 * out_r, 1, np.where(out_m < -3.0 * out_r, 0, -1)).astype(np.int8)
-    out_i = np.where(stable == 1, 0, out_i)
-    return StabilityArrays(stable, out_m, out_r, out_i, out_n)
+    idx, gap, flags, sign = closed_form_index(system, X, charts)
+    mg = np.full(n, np.nan)
+    res = np.full(n, np.nan)
+    method = np.zeros(n, np.int8)
+    stable = np.where(idx == 0, 1, 0).astype(np.int8)
+    fb = flags != 0
+    todo = np.flatnonzero(fb | margin) if n else np.zeros(0, np.int64)
+    pairs = None
+    if todo.size:
+        c0 = np.where(fb[todo], -1, idx[todo])
+        g = None if guess is None else guess.take(todo)
+        mu, r, fidx, pr = _margins(system, X[todo], charts[todo], c0, bool(np.any(fb)), g)
+        mg[todo], res[todo] = mu, r
+        # a resolved discretised margin that contradicts the closed-form verdict: undecided
+        bad = ~fb[todo] & (np.abs(mu) > 3.0 * r) & ((mu > 0.0) != (idx[todo] == 0))
+        if np.any(bad):
+            flags[todo[bad]] |= F_DISAGREE
+            fb[todo[bad]] = True
+        f = fb[todo]
+        if np.any(f):
+            rows = todo[f]
+            method[rows] = DISCRETISED
+            stable[rows] = np.where(mu[f] > 3.0 * r[f], 1, np.where(mu[f] < -3.0 * r[f], 0, -1))
+            idx[rows] = np.where(stable[rows] == 1, 0, np.where(stable[rows] == 0, fidx[f], -1))
+        if margin:
+            pairs = Eigenpairs(np.zeros((n,) + pr.elements.shape[1:], np.int64),
+                               np.zeros((n,) + pr.rods.shape[1:]), np.zeros((n, 3)), np.zeros(n, bool))
+            pairs.elements[todo], pairs.rods[todo], pairs.pose[todo], pairs.valid[todo] = (
+                pr.elements, pr.rods, pr.pose, pr.valid)
+    return StabilityArrays(stable, mg, res, idx, method, flags, gap, sign, pairs)
+
+
+def solution_margins(system: System, X: NDArray, charts: NDArray, index: NDArray | None = None
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Margins and their resolutions of equilibria ``X`` in ``charts`` (the index, when known,
+    saves the discretisation a Sylvester count).
+
+    Parameters
+    ----------
+    system : System
+        The mechanism's equation system.
+    X : ndarray (n, n_unknowns)
+        Equilibria.
+    charts : ndarray (n, 3)
+        Their rods' charts.
+    index : ndarray (n,), optional
+        Their indices where known (-1 elsewhere).
+
+    Returns
+    -------
+    margin, resolution : ndarray (n,)
+    """
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    charts = np.atleast_2d(np.asarray(charts, dtype=np.int64))
+    c0 = np.full(len(X), -1, np.int64) if index is None else np.asarray(index, dtype=np.int64)
+    mu, res, _, _ = _margins(system, X, charts, c0, False)
+    return mu, res
 
 
 # ---- the platform's output stiffness ------------------------------------------------------------
@@ -470,7 +734,9 @@ def output_stiffness(system: System, X: NDArray, charts: NDArray, load: NDArray)
     return dW / np.array([system.L_ref, system.L_ref, 1.0])[None, None, :]
 
 
-# ---- one rod: the classical cases ---------------------------------------------------------------
+# ================================================================================================
+# one rod: the classical cases
+# ================================================================================================
 @dataclass(frozen=True)
 class RodStability:
     """Stability of one clamped rod under a tip condition (see :func:`rod_stability`).
@@ -493,6 +759,89 @@ class RodStability:
     tip: str
 
 
+_TIPS = {"free": (0, 2), "pinned": (2, 0), "slider": (1, 3), "clamped": (3, 1)}
+
+
+def _rod_closed_form(rod: RodState, tip: str, g: NDArray) -> tuple[int, float]:
+    """Closed-form index of one rod under a tip condition (Eq. M1 without the platform; in the
+    rod's own clamp frame) and the gap of its bordered matrix."""
+    z = np.zeros(3)
+    z[:len(rod.coords)] = rod.coords
+    q = np.empty(NQ)
+    gq = np.empty((NQ, 3))
+    eval_rod(int(rod.chart), z, q, gq)
+    D = np.empty((4, 3))
+    res = np.empty(7)
+    rod_terms(q[FX], q[FY], q[M0], int(rod.chart) == CHART_WRENCH, D, res)   # pinned charts: m(1) = 0
+    u1, up1 = res[1], res[2]
+    if int(res[5]) & (F_STRAIGHT | F_NONFINITE | F_ENDS):
+        return -1, 0.0
+    cc = abs(u1) >= abs(up1)
+    if tip == "clamped":
+        # constraints delta r = 0 and eta(1) = 0: on the cc base t = 0 is imposed (no y)
+        if cc:
+            base = int(res[3])
+            B = -(D[:2, :2] - np.outer(D[:2, 2], D[2, :2]) / u1)
+        else:
+            base = int(res[4])
+            A = np.eye(3)
+            A[2] = D[3]
+            B = -(D[:3] @ np.linalg.inv(A))
+    elif cc:
+        base = int(res[3])
+        Gc = D[:2, :2] - np.outer(D[:2, 2], D[2, :2]) / u1
+        c = D[:2, 2] / u1
+        rows = {"free": np.zeros((0, 2)), "pinned": np.eye(2), "slider": g[None, :]}[tip]
+        m = len(rows)
+        B = np.zeros((1 + m, 1 + m))
+        B[0, 0] = up1 / u1
+        B[1:, 0] = B[0, 1:] = rows @ c
+        B[1:, 1:] = -rows @ Gc @ rows.T
+    else:
+        base = int(res[4])
+        Gf = D[:2, :2] - np.outer(D[:2, 2], D[3, :2]) / up1
+        rows = {"free": np.zeros((0, 2)), "pinned": np.eye(2), "slider": g[None, :]}[tip]
+        B = -rows @ Gf @ rows.T
+    B = 0.5 * (B + B.T)
+    m = {"free": 0, "pinned": 2, "slider": 1, "clamped": 2 if cc else 3}[tip]
+    ev = np.linalg.eigvalsh(B) if B.size else np.zeros(0)
+    gap = float(np.min(np.abs(ev)) / max(np.max(np.abs(ev)), 1e-300)) if ev.size else np.inf
+    return base + int(np.sum(ev < 0)) - m, gap
+
+
+def _rod_discretised(rod: RodState, tip: str, g: NDArray) -> tuple[float, float, int]:
+    """Margin, resolution and discretised index of one rod under a tip condition (``g``: a
+    slider's normal in the clamp frame), in the rod's own ``EI / L``."""
+    chart = int(rod.chart)
+    z = np.zeros(3)
+    z[:len(rod.coords)] = rod.coords
+    if chart == CHART_SEAM:
+        v, ph = seam_to_chart(z[0], z[1])
+        z[0], z[1] = float(v), float(ph)
+        chart = CHART_UNIFIED
+    with single_threaded_blas():
+        q = np.empty(NQ)
+        gq = np.empty((NQ, 3))
+        eval_rod(chart, z, q, gq)
+        lam = float(np.sqrt(np.hypot(q[FX], q[FY])))
+        E = elements_for(np.array([lam, 0.0, 0.0]))
+        E[1:] = 2
+        xg, wg, sh = element_rule(P_FINE)
+        th = np.zeros((3, int(E.max()) * len(xg)))
+        rod_nodes(chart, z, int(E[0]), xg, th[0, :int(E[0]) * len(xg)])
+        mi_, code_ = _TIPS[tip]
+        gn = np.zeros((3, 2))
+        gn[0] = g
+        fu = np.zeros((3, 2))
+        fu[0] = q[FX], q[FY]
+        L0 = min(0.0, 0.25 * math.pi**2 - lam**2) - 1.0
+        mu, res, fidx, _ = fe_stability(th, fu, np.zeros(3), np.ones(3), np.ones(3), E,
+                                        np.array([mi_, 0, 0], np.int64), np.array([code_, 2, 2], np.int64), gn,
+                                        np.zeros((3, 3, 3)), np.zeros((3, 3)), 1, 0, xg, wg, sh, L0, -1,
+                                        np.zeros((3, int(E.max()) * P_FINE)), np.zeros(3), False, True)
+    return float(mu), float(res), int(fidx)
+
+
 def rod_stability(rod: RodState, tip: str = "pinned", slider_angle: float | None = None) -> RodStability:
     """Stability of one rod clamped at its base, with its tip
 
@@ -502,8 +851,8 @@ def rod_stability(rod: RodState, tip: str = "pinned", slider_angle: float | None
     * ``"clamped"``: held at a fixed point with a fixed tangent.
 
     The rod must be an equilibrium of that problem (for ``"free"`` and ``"slider"`` the tip
-    force is the dead load).  Same discretisation as :func:`mechanism_stability`, with the
-    rod's own ``L`` and ``EI`` as units.
+    force is the dead load).  The index from the closed form (module docstring, Eq. M1 with
+    the tip's constraints), the margin from the banded discretisation, in the rod's own ``EI / L``.
 
     Parameters
     ----------
@@ -518,55 +867,21 @@ def rod_stability(rod: RodState, tip: str = "pinned", slider_angle: float | None
     -------
     RodStability
     """
-    if tip not in ("pinned", "slider", "free", "clamped"):
+    if tip not in _TIPS:
         raise ValueError(f"tip must be 'free', 'pinned', 'slider' or 'clamped', got {tip!r}")
     if tip == "slider" and slider_angle is None:
         raise ValueError("tip='slider' needs slider_angle (rad)")
-    z = np.zeros((1, 3, 3))
-    ch = np.full((1, 3), rod.chart, dtype=np.int64)
-    z[0, :, :len(rod.coords)] = rod.coords
-    if rod.chart == CHART_SEAM:
-        z[0, :, 0], z[0, :, 1] = seam_to_chart(rod.coords[0], rod.coords[1])
-        ch[:] = CHART_UNIFIED
-    Phi = np.sqrt(np.hypot(*rod.tip_force) * rod.length**2 / rod.EI)
-    N = _modes_for(Phi)
-    f = np.array(rod.tip_force) * rod.length**2 / rod.EI
-    results = []
+    g = np.zeros(2)
+    if tip == "slider":       # the slider's normal in the clamp frame
+        ang = float(slider_angle) - rod.clamp_angle
+        g = np.array([-math.sin(ang), math.cos(ang)])
     with single_threaded_blas():
-        while True:
-            evs = []
-            for n_ in (N, int(min(N_MAX, N + max(8, N // 4)))):
-                bs = basis(n_)
-                th = np.empty((1, 3, len(bs.s)))
-                _angles(ch, z, np.full((1, 3), rod.clamp_angle), bs.s, th)
-                th0 = th[0, 0]
-                Q = bs.K + (bs.psi * (bs.w * (f[0] * np.cos(th0) + f[1] * np.sin(th0)))) @ bs.psi.T
-                rows = []
-                nperp = np.stack([-np.sin(th0), np.cos(th0)]) * bs.w
-                if tip in ("pinned", "clamped"):
-                    rows += list(nperp @ bs.psi.T)
-                elif tip == "slider":
-                    g = np.array([-np.sin(slider_angle), np.cos(slider_angle)])
-                    rows.append(g @ nperp @ bs.psi.T)
-                if tip == "clamped":
-                    rows.append(bs.tip)
-                if rows:
-                    Cm = np.array(rows)
-                    B = np.empty((len(Q), len(Q)))
-                    r = _project(np.array(Q), Cm, B)
-                    evs.append(np.linalg.eigvalsh(B[:len(Q) - r, :len(Q) - r]))
-                else:
-                    evs.append(np.linalg.eigvalsh(0.5 * (Q + Q.T)))
-                results.append(n_)
-            ev1, ev2 = evs
-            k = min(len(ev1), len(ev2), 6)
-            res = 2.0 * abs(ev2[0] - ev1[0]) + ROUNDOFF * np.max(np.abs(np.diag(bs.K))) * results[-1] ** 2
-            mu = float(ev2[0])
-            if abs(mu) > 3 * res or results[-1] >= N_MAX:
-                break
-            N = min(N_MAX, 2 * N)
-    err = 2.0 * np.abs(ev2[:k] - ev1[:k]) + (res - 2.0 * abs(ev2[0] - ev1[0]))
-    near = np.any(np.abs(ev2[:k]) <= 3 * err)
-    stable = None if abs(mu) <= 3 * res else mu > 0
-    index = 0 if stable else (None if near else int(np.sum(ev2 < 0)))
-    return RodStability(stable, index, mu, float(res), tip)
+        cf_index, gap = _rod_closed_form(rod, tip, g)
+    mu, res, fidx = _rod_discretised(rod, tip, g)
+    if cf_index >= 0 and gap > 1e-10:
+        index: int | None = cf_index
+        stable: bool | None = cf_index == 0
+    else:
+        stable = None if abs(mu) <= 3.0 * res else bool(mu > 0.0)
+        index = 0 if stable else (None if fidx < 0 else int(fidx))
+    return RodStability(stable, index, float(mu), float(res), tip)

@@ -31,6 +31,7 @@ from typing import Any, Sequence
 import numpy as np
 
 import flexkin
+from flexkin.results import fill_margins
 
 __all__ = [
     "EVENT_TITLES", "ExplorerState", "LogEntry", "MoveOutcome", "SolveOutcome", "SolveRequest",
@@ -564,6 +565,7 @@ class ExplorerState:
         sols = [self._selected] if (self.stale and self._selected is not None) else list(self.solutions)
         cols: dict[str, list] = {k: [] for k in ("id", "modes", "u1", "u2", "u3", "x", "y", "theta", "stable",
                                                  "margin", "det_ik", "det_fk", "feasible", "selected")}
+        fill_margins(sols)  # one batch (they are computed on first use)
         for s in sols:
             u = s.inputs_display()
             cols["id"].append(int(s.id))

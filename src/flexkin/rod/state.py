@@ -81,27 +81,50 @@ class RodState:
                   clamp: NDArray | tuple[float, float], clamp_angle: float, mode: int,
                   joint: str = "pinned", mode_boundary: bool = False) -> "RodState":
         """Place a unit rod's tip quantities ``q`` (NQ,) at a clamp, scaled to ``length``, ``EI``."""
+        c = np.zeros(3)
+        c[:len(coords)] = coords
+        return cls.many(np.asarray(q)[None], np.array([chart]), c[None], np.array([length]), np.array([EI]),
+                        np.asarray(clamp, dtype=float)[None], np.array([clamp_angle]), np.array([mode]),
+                        (joint,), np.array([mode_boundary]), dims=(len(coords),))[0]
+
+    @classmethod
+    def many(cls, q: NDArray, charts: NDArray, coords: NDArray, length: NDArray, EI: NDArray, clamp: NDArray,
+             clamp_angle: NDArray, modes: NDArray, joints, boundary: NDArray, dims=None) -> list["RodState"]:
+        """:meth:`from_unit` for ``n`` rods at once (arrays with a leading ``n``; ``coords`` (n, 3)
+        zero-padded, ``dims`` the number of chart coordinates of each, default from the chart)."""
+        q = np.asarray(q, dtype=float)
+        charts = np.asarray(charts, dtype=np.int64)
         c = np.asarray(clamp, dtype=float)
-        tip = c + length * rotate(q[[X, Y]], clamp_angle)
-        f = EI / length**2 * rotate(q[[FX, FY]], clamp_angle)
-        R = float(np.hypot(q[FX], q[FY]))
-        psi = float(np.mod(np.arctan2(q[FY], q[FX]), 2.0 * np.pi)) if R > 0 else np.pi
+        al = np.asarray(clamp_angle, dtype=float)
+        L = np.asarray(length, dtype=float)
+        EI = np.asarray(EI, dtype=float)
+        tip = c + L[:, None] * rotate(q[:, [X, Y]], al)
+        f = (EI / L**2)[:, None] * rotate(q[:, [FX, FY]], al)
+        R = np.hypot(q[:, FX], q[:, FY])
+        psi = np.where(R > 0, np.mod(np.arctan2(q[:, FY], q[:, FX]), 2.0 * np.pi), np.pi)
         lam = np.sqrt(R)
-        ch = np.cos(0.5 * psi)
-        m0 = float(q[M0])
-        if lam > 0:
-            k = float(np.copysign(np.hypot(ch, m0 / (2.0 * lam)), m0 if m0 != 0 else 1.0))
-        else:
-            k = float(np.copysign(np.inf, m0)) if m0 != 0 else 0.0
-        if chart == CHART_UNIFIED or chart == CHART_SEAM:
-            v, ph = _unified(chart, coords[0], coords[1])
-            k = float(to_paper(np.tanh(v), ph)[0])
-        return cls(mode=int(mode), k=k, psi=psi, length=float(length), EI=float(EI),
-                   clamp=(float(c[0]), float(c[1])), clamp_angle=float(clamp_angle),
-                   tip=(float(tip[0]), float(tip[1])), tip_angle=float(clamp_angle + q[TH]),
-                   tip_force=(float(f[0]), float(f[1])), base_moment=float(EI / length * m0),
-                   energy=float(EI / length * q[EN]), tip_moment=float(EI / length * q[ML]), chart=int(chart),
-                   coords=tuple(float(a) for a in coords), joint=joint, mode_boundary=bool(mode_boundary))
+        m0 = q[:, M0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            k = np.where(lam > 0, np.copysign(np.hypot(np.cos(0.5 * psi), m0 / (2.0 * lam)), np.where(m0 != 0, m0, 1.0)),
+                         np.where(m0 != 0, np.copysign(np.inf, m0), 0.0))
+        pinned = (charts == CHART_UNIFIED) | (charts == CHART_SEAM)
+        if np.any(pinned):
+            z0 = coords[pinned, 0]
+            z1 = coords[pinned, 1]
+            z1 = np.where((charts[pinned] == CHART_SEAM) & ~is_seam(z1), z1 + SEAM_OFFSET, z1)
+            v, ph = standard_chart(z0, z1)
+            k[pinned] = to_paper(np.tanh(v), ph)[0]
+        if dims is None:
+            dims = np.where(charts == CHART_WRENCH, 3, 2)
+        sc = EI / L
+        return [cls(mode=int(modes[r]), k=float(k[r]), psi=float(psi[r]), length=float(L[r]), EI=float(EI[r]),
+                    clamp=(float(c[r, 0]), float(c[r, 1])), clamp_angle=float(al[r]),
+                    tip=(float(tip[r, 0]), float(tip[r, 1])), tip_angle=float(al[r] + q[r, TH]),
+                    tip_force=(float(f[r, 0]), float(f[r, 1])), base_moment=float(sc[r] * m0[r]),
+                    energy=float(sc[r] * q[r, EN]), tip_moment=float(sc[r] * q[r, ML]), chart=int(charts[r]),
+                    coords=tuple(float(a) for a in coords[r, :int(dims[r])]), joint=joints[r],
+                    mode_boundary=bool(boundary[r]))
+                for r in range(len(q))]
 
     @classmethod
     def from_chart(cls, v: float, phis: float, length: float, EI: float,

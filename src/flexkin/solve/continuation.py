@@ -213,9 +213,15 @@ def to_working_charts(system: System, X: NDArray, charts: NDArray) -> tuple[NDAr
     return X, charts
 
 
+#: ``k'`` at ``|v| = SEAM_OUT``: a seam-chart rod with a larger ``k'`` goes back to the unified chart
+_KP_OUT = 1.0 / math.cosh(SEAM_OUT)
+
+
 @njit(cache=True)
 def _switch_needed(X, charts, rod_col) -> bool:
-    """Whether :func:`to_working_charts` moves any rod (the common case is none)."""
+    """Whether :func:`to_working_charts` moves any rod (the common case is none): a unified
+    rod beyond ``SEAM_IN``, or a seam rod whose ``k'`` (:func:`~flexkin.rod.closed_form.seam_to_chart`)
+    is above that of ``|v| = SEAM_OUT``."""
     for k in range(X.shape[0]):
         for i in range(3):
             z0 = X[k, rod_col[i]]
@@ -224,7 +230,11 @@ def _switch_needed(X, charts, rod_col) -> bool:
                 if abs(z0) > SEAM_IN and z1 > 1e-6 and z1 < 0.5 * np.pi - 1e-12:
                     return True
             elif charts[k, i] == CHART_SEAM:
-                return True
+                h = 0.5 * abs(z0)
+                sc, cc, ch = math.sin(z1), math.cos(z1), math.cos(h)
+                kp = math.sin(h) * cc / math.sqrt(cc * cc + ch * ch * sc * sc)
+                if kp >= _KP_OUT * (1.0 - 1e-12):
+                    return True
     return False
 
 

@@ -26,6 +26,7 @@ from ..analysis.jacobian import kinematic_jacobians
 from ..analysis.stability import mechanism_stability
 from ..analysis.verify import verify_solutions
 from ..core.budget import Deadline, Rate, timed_slices
+from ..core.jit import njit
 from ..core.geometry2d import wrap_to_pi
 from ..io.progress import substage
 from ..results import Solution
@@ -130,6 +131,59 @@ def _in_scope(system: System, X: NDArray, charts: NDArray, modes: NDArray, max_m
 STRAIGHT_TOL = 1e-9
 
 
+@njit
+def _distinct(order, geo, rod, straight, fmag):
+    """The compiled loops of :func:`distinct`: the first candidate (in ``order``) of every
+    equilibrium, then the least loaded one of every continuum of straight rods."""
+    chosen = np.empty(order.shape[0], np.int64)
+    nc = 0
+    for i in order:
+        same = False
+        for c in range(nc):
+            k = chosen[c]
+            d = 0.0
+            for j in range(geo.shape[1]):
+                d = max(d, abs(geo[k, j] - geo[i, j]))
+            if d > 1e-6:
+                continue
+            d = 0.0
+            for j in range(rod.shape[1]):
+                d = max(d, abs(rod[k, j] - rod[i, j]))
+            if d <= 1e-6:
+                same = True
+                break
+        if not same:
+            chosen[nc] = i
+            nc += 1
+    chosen = chosen[:nc]
+    by_load = chosen[np.argsort(fmag[chosen], kind="mergesort")]
+    keep = np.empty(nc, np.int64)
+    nk = 0
+    for a in by_load:
+        merged = False
+        for c in range(nk):
+            b = keep[c]
+            d = 0.0
+            for j in range(geo.shape[1]):
+                d = max(d, abs(geo[a, j] - geo[b, j]))
+            if d > 1e-8:
+                continue
+            ok = True
+            for r in range(3):
+                d = 0.0
+                for j in range(3):
+                    d = max(d, abs(rod[a, 3 * r + j] - rod[b, 3 * r + j]))
+                if d > 1e-6 and not (straight[a, r] and straight[b, r]):
+                    ok = False
+            if ok:
+                merged = True
+                break
+        if not merged:
+            keep[nk] = a
+            nk += 1
+    return chosen, keep[:nk]
+
+
 def distinct(system: System, X: NDArray, charts: NDArray, residual: NDArray,
              diag: dict[str, Any] | None = None) -> NDArray[np.int64]:
     """Indices of one candidate per equilibrium (the smallest residual of each).
@@ -156,32 +210,11 @@ def distinct(system: System, X: NDArray, charts: NDArray, residual: NDArray,
                           w["base_moment"][..., None] / (system.F_ref * system.L_ref)], axis=2)  # (n, 3, 3)
     straight = (np.abs(q[..., X_] - 1.0) < STRAIGHT_TOL) & (np.abs(q[..., Y_]) < STRAIGHT_TOL)
     order = np.argsort(residual, kind="stable")
-    chosen: list[int] = []
-    for i in order:
-        if not chosen:
-            chosen.append(int(i))
-            continue
-        c = np.array(chosen)
-        same_geo = np.max(np.abs(geo[c] - geo[i]), axis=1) <= 1e-6
-        rod_differs = np.max(np.abs(rod[c] - rod[i]), axis=2) > 1e-6          # (m, 3)
-        same = same_geo & ~np.any(rod_differs, axis=1)
-        if np.any(same):
-            continue
-        chosen.append(int(i))
-    # continuum: same geometry, forces differing only on rods straight in both
     fmag = np.sum(np.abs(w["force"].reshape(-1, 6)), axis=1)
-    keep: list[int] = []
-    for a in sorted(chosen, key=lambda k: fmag[k]):
-        merged = False
-        for b in keep:
-            if np.max(np.abs(geo[a] - geo[b])) > 1e-8:
-                continue
-            differs = np.max(np.abs(rod[a] - rod[b]), axis=1) > 1e-6
-            if np.all(~differs | (straight[a] & straight[b])):
-                merged = True
-                break
-        if not merged:
-            keep.append(a)
+    chosen, keep = _distinct(order, np.ascontiguousarray(geo), np.ascontiguousarray(rod.reshape(-1, 9)),
+                             straight, fmag)
+    chosen = list(chosen)
+    keep = list(keep)
     if diag is not None and len(keep) < len(chosen):
         diag["continuum"] = len(chosen) - len(keep) + 1
     return np.array(sorted(keep), dtype=np.int64)
@@ -194,9 +227,10 @@ BUILD_COST = 3e-3
 def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual: NDArray, max_mode: int,
                      load: NDArray, diag: dict[str, Any] | None = None, fixed: str = "pose",
                      deadline: Deadline | None = None,
-                     progress: Callable[[float, str], None] | None = None) -> list[Solution]:
+                     progress: Callable[[float, str], None] | None = None, margin: bool = False) -> list[Solution]:
     """Reported solutions from refined candidates (module docstring); ``fixed`` is what the
-    analysis held (``"pose"`` for IK, ``"inputs"`` for FK): its Newton matrix gives ``condition``.
+    analysis held (``"pose"`` for IK, ``"inputs"`` for FK): its Newton matrix gives ``condition``;
+    ``margin`` computes the stability margins now (else on first use).
     With a ``deadline`` the solutions are built in slices while the time allows; those left
     unbuilt are dropped and the deadline is :attr:`~flexkin.core.budget.Deadline.hit`.
     ``progress(fraction, stage)`` is told how far the analysis has got."""
@@ -222,7 +256,7 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
         t = time.perf_counter()
         k = idx[lo:hi]
         sols += build_solutions(system, mech, X[k], charts[k], load, residual[k], modes[k], fixed,
-                                substage(progress, lo / n, hi / n, ""))
+                                substage(progress, lo / n, hi / n, ""), margin=margin)
         rate.add(hi - lo, time.perf_counter() - t)
     escale = system.F_ref * system.L_ref
     sols.sort(key=lambda s: (s.modes, round(s.energy / escale, 9), tuple(s.inputs), tuple(s.pose)))
@@ -231,11 +265,14 @@ def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual
 
 def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDArray,
                     residual: NDArray | None = None, modes: NDArray | None = None,
-                    fixed: str = "pose", progress: Callable[[float, str], None] | None = None) -> list[Solution]:
+                    fixed: str = "pose", progress: Callable[[float, str], None] | None = None,
+                    margin: bool = False, stability: Any = None) -> list[Solution]:
     """:class:`~flexkin.results.Solution` objects (with stability, Jacobians and the independent
     check of :mod:`flexkin.analysis.verify`: ``verified``, ``condition``) for equilibria ``X``
     (n, n_unknowns) in ``charts`` (n, 3); residuals are recomputed when not given.  ``fixed``
-    (``"pose"`` or ``"inputs"``) selects the Newton matrix whose condition is reported."""
+    (``"pose"`` or ``"inputs"``) selects the Newton matrix whose condition is reported;
+    ``margin`` computes the stability margins now (else on first use); ``stability`` (a
+    :class:`~flexkin.analysis.stability.StabilityArrays`) if already computed."""
     X = np.atleast_2d(np.asarray(X, dtype=float))
     charts = np.atleast_2d(np.asarray(charts, dtype=np.int64))
     if len(X) == 0:
@@ -245,18 +282,24 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
     modes_b, boundary = rod_modes(system, X, charts, with_boundary=True)
     if modes is None:
         modes = modes_b
-    stab = _stability(system, X, charts, progress)
+    stab = _stability(system, X, charts, progress, margin) if stability is None else stability
     jac = kinematic_jacobians(system, X, charts, load)
     check = verify_solutions(system, X, charts, load, modes, boundary, fixed)
     q, _ = system.unit_rods(X, charts)
     lay = system.layout
     A, alpha, L = system.clamps(X[:, lay.inputs])
+    n = len(X)
+    coords = np.zeros((n, 3, 3))
+    for i in range(3):
+        zi = X[:, lay.rod[i]]
+        coords[:, i, :zi.shape[1]] = zi
+    dims = np.broadcast_to([lay.rod[i].stop - lay.rod[i].start for i in range(3)], (n, 3)).ravel()
+    flat = RodState.many(q.reshape(n * 3, -1), charts.reshape(-1), coords.reshape(n * 3, 3), L.reshape(-1),
+                         np.tile(system.EI, n), A.reshape(n * 3, 2), alpha.reshape(-1), modes.reshape(-1),
+                         tuple(mech.legs[i].joint for _ in range(n) for i in range(3)), boundary.reshape(-1), dims)
     sols = []
-    for j in range(len(X)):
-        rods = tuple(RodState.from_unit(q[j, i], int(charts[j, i]), X[j, lay.rod[i]], L[j, i], system.EI[i],
-                                        A[j, i], alpha[j, i], int(modes[j, i]), mech.legs[i].joint,
-                                        bool(boundary[j, i]))
-                     for i in range(3))
+    for j in range(n):
+        rods = tuple(flat[3 * j:3 * j + 3])
         st = stab.item(j)
         sols.append(Solution(mech, tuple(float(v) for v in X[j, lay.pose]), tuple(float(v) for v in X[j, lay.inputs]),
                              tuple(int(v) for v in modes[j]),
@@ -270,23 +313,28 @@ def build_solutions(system: System, mech, X: NDArray, charts: NDArray, load: NDA
 PROGRESS_BATCH = 8
 
 
-def _stability(system: System, X: NDArray, charts: NDArray, progress: Callable[[float, str], None] | None):
+def _stability(system: System, X: NDArray, charts: NDArray, progress: Callable[[float, str], None] | None,
+               margin: bool = False):
     """:func:`mechanism_stability`, in batches reporting ``progress`` when it is given (the
     stability of each equilibrium is computed on its own, so the batches change nothing)."""
     n = len(X)
     if progress is None or n <= PROGRESS_BATCH:
-        out = mechanism_stability(system, X, charts)
+        out = mechanism_stability(system, X, charts, margin=margin)
     else:
         parts = []
         for k in range(0, n, PROGRESS_BATCH):
             progress(k / n, f"stability {k} of {n}")
-            parts.append(mechanism_stability(system, X[k:k + PROGRESS_BATCH], charts[k:k + PROGRESS_BATCH]))
+            parts.append(mechanism_stability(system, X[k:k + PROGRESS_BATCH], charts[k:k + PROGRESS_BATCH],
+                                             margin=margin))
+        # the eigenvectors (kept for continuations, which do not report progress) are not joined
         out = type(parts[0])(**{f.name: np.concatenate([getattr(q, f.name) for q in parts])
-                                for f in dataclasses.fields(parts[0])})
+                                for f in dataclasses.fields(parts[0]) if f.name != "pairs"})
     if progress is not None:
         progress(1.0, "Jacobians and verification")
     return out
 
 
 def _with_id(s: Solution, k: int) -> Solution:
-    return dataclasses.replace(s, id=k)
+    """Number a solution just built (not yet shared): set in place, not copied."""
+    object.__setattr__(s, "id", k)
+    return s

@@ -34,7 +34,7 @@ __all__ = ["fk"]
 
 def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *, stride: int = 4,
        stable_only: bool = False, time_budget: float | Deadline | None = None,
-       progress: Progress | None = None) -> KinematicsResult:
+       progress: Progress | None = None, margin: bool = False) -> KinematicsResult:
     """All equilibrium poses of ``mech`` for actuator ``inputs`` under ``load`` (paper §5).
 
     Parameters
@@ -62,6 +62,9 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         Called as ``progress(fraction, stage)`` as the work advances (``fraction`` from 0 to 1,
         during the search the share of the search space resolved;
         :class:`flexkin.io.progress.ProgressBar` draws it).
+    margin : bool
+        Compute every solution's stability margin now (default: on first use -- the verdict
+        and the index come from the closed form and need no margin).
 
     Returns
     -------
@@ -99,7 +102,7 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     if progress is not None:
         progress(0.6, f"Newton on {len(X)} candidates")
     sols = refine_fk(system, mech, X, charts, w, max_mode, diag, deadline=dl,
-                     progress=substage(progress, 0.7, 1.0, "equilibria"))
+                     progress=substage(progress, 0.7, 1.0, "equilibria"), margin=margin)
     if dl.limited and not complete and "lattice_h" in diag:
         dl.hit = True  # the lattice search stops only at the deadline
     complete = complete and not dl.hit
@@ -121,15 +124,16 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
 
 def refine_fk(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
               diag: dict[str, Any] | None = None, deadline: Deadline | None = None,
-              progress: Progress | None = None) -> list[Solution]:
+              progress: Progress | None = None, margin: bool = False) -> list[Solution]:
     """Newton-refine FK candidates ``X`` (inputs held) and build the solutions (within the
-    ``deadline``, if given: what it leaves no time for is dropped and the deadline is hit)."""
+    ``deadline``, if given: what it leaves no time for is dropped and the deadline is hit;
+    ``margin``: with their stability margins)."""
     res = newton_within(system, X, charts, load, "inputs", deadline)
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
     return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
-                            "inputs", deadline=deadline, progress=progress)
+                            "inputs", deadline=deadline, progress=progress, margin=margin)
 
 
 def _assembly_obstruction(m: System, u: NDArray) -> str:

@@ -46,7 +46,7 @@ def as_load(mech, load: ArrayLike | None) -> NDArray[np.float64]:
 
 def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *,
        stable_only: bool = False, time_budget: float | Deadline | None = None,
-       progress: Progress | None = None) -> KinematicsResult:
+       progress: Progress | None = None, margin: bool = False) -> KinematicsResult:
     """All equilibria of ``mech`` at platform ``pose`` under ``load`` (paper §4).
 
     Parameters
@@ -70,6 +70,9 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     progress : callable, optional
         Called as ``progress(fraction, stage)`` as the work advances (``fraction`` from 0 to 1;
         :class:`flexkin.io.progress.ProgressBar` draws it).
+    margin : bool
+        Compute every solution's stability margin now (default: on first use -- the verdict
+        and the index come from the closed form and need no margin).
 
     Returns
     -------
@@ -140,7 +143,7 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     if progress is not None:
         progress(0.4, f"Newton on {len(X)} candidates")
     sols = refine_ik(system, mech, X, charts, w, max_mode, diag, deadline=dl,
-                     progress=substage(progress, 0.45, 1.0, "equilibria"))
+                     progress=substage(progress, 0.45, 1.0, "equilibria"), margin=margin)
     complete = complete and not dl.hit
     msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
     if diag.get("continuum"):
@@ -159,15 +162,16 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
 
 def refine_ik(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
               diag: dict[str, Any] | None = None, deadline: Deadline | None = None,
-              progress: Progress | None = None) -> list[Solution]:
+              progress: Progress | None = None, margin: bool = False) -> list[Solution]:
     """Newton-refine IK candidates ``X`` (pose held) and build the solutions (within the
-    ``deadline``, if given: what it leaves no time for is dropped and the deadline is hit)."""
+    ``deadline``, if given: what it leaves no time for is dropped and the deadline is hit;
+    ``margin``: with their stability margins)."""
     res = newton_within(system, X, charts, load, "pose", deadline)
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
     return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
-                            deadline=deadline, progress=progress)
+                            deadline=deadline, progress=progress, margin=margin)
 
 
 def _empty_message(curves) -> str:

@@ -4,8 +4,11 @@ The path ``x(t) = (1 - t) x_from + t x_to``, ``t`` in [0, 1], is sampled at ``st
 points; between samples the solution is continued (:func:`~flexkin.solve.continuation.continue_ik`)
 with steps halved on failure, down to :data:`MIN_SUBSTEP` of the sample spacing.  Along the
 branch, sign changes of the singularity measures ``sing_ik`` and ``sing_fk``
-(:mod:`flexkin.analysis.jacobian`; they change sign with ``det A_IK``, ``det A_FK``), changes of the stability verdict and of the d-modes are
-reported as events located between two samples.
+(:mod:`flexkin.analysis.jacobian`; they change sign with ``det A_IK``, ``det A_FK``), changes of
+the stability verdict (the closed-form index of :mod:`flexkin.analysis.stability` at every
+sample) and of the d-modes are reported as events located between two samples.  The stability
+margin of every sample is computed with the eigenvector of the previous sample as the start (a
+full computation at a d-mode change).
 
 Where the continuation fails even at the smallest sub-step, the branch ends, and the reason
 given follows from what was computed there: an **IK singularity** (the branch folds back,
@@ -27,7 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..analysis.jacobian import kinematic_jacobians, singularity_measures, system_blocks
-from ..analysis.stability import mechanism_stability
+from ..analysis.stability import StabilityArrays, mechanism_stability
 from ..core.budget import Deadline, Rate
 from ..core.validation import as_triple, check_count, check_max_mode
 from ..io.progress import Progress, substage
@@ -387,6 +390,8 @@ class _Analysis:
         self.n = 0
         self.parts: dict[str, list[NDArray]] = {k: [] for k in self._KEYS + ("stable",)}
         self.feasibility: list[Any] = []
+        self._pairs: Any = None               # eigenvectors of the last sample analysed
+        self._modes: NDArray | None = None    # and its d-modes
 
     def run(self, xs: list[NDArray], cs: list[NDArray], rate: Rate) -> None:
         """Analyse the samples ``xs[self.n:]``."""
@@ -394,7 +399,7 @@ class _Analysis:
             return
         t = time.perf_counter()
         X, C = np.array(xs[self.n:]), np.array(cs[self.n:])
-        st = mechanism_stability(self.system, X, C)
+        st = self._stability(X, C)
         jac = kinematic_jacobians(self.system, X, C, self.w)
         self.parts["stable"].append(st.stable == 1)
         self.parts["margin"].append(st.margin)
@@ -411,6 +416,22 @@ class _Analysis:
 
     def arrays(self) -> dict[str, NDArray]:
         return {k: np.concatenate(v) for k, v in self.parts.items()}
+
+    def _stability(self, X: NDArray, C: NDArray) -> StabilityArrays:
+        """Stability of the next samples of the branch: the closed-form verdict of each, and its
+        margin with the eigenvector carried from the previous sample (computed afresh at a
+        d-mode change; the discretisation restarts by itself when the carried one fails,
+        :mod:`flexkin.analysis.second_variation`)."""
+        modes = rod_modes(self.system, X, C)
+        rows = []
+        for j in range(len(X)):
+            same = self._modes is not None and np.array_equal(modes[j], self._modes)
+            st = mechanism_stability(self.system, X[j:j + 1], C[j:j + 1], margin=True,
+                                     guess=self._pairs if same else None)
+            self._pairs, self._modes = st.pairs, modes[j]
+            rows.append(st)
+        return StabilityArrays(*(np.concatenate([getattr(r, f) for r in rows]) for f in
+                               ("stable", "margin", "resolution", "index", "method", "flags", "gap", "sign")))
 
 
 def _stop_reason(system: System, last: list, w: NDArray, t_end: float, dt_end: float, span: float) -> str:

@@ -6,7 +6,8 @@ same physical branch is followed through d-mode changes.  Each move reports what
 on the way as :class:`TrackEvent` s, from quantities computed at the two ends of the move:
 
 * ``"mode_change"``: a rod's d-mode changed (followed; not a failure);
-* ``"stability_lost"`` / ``"stability_regained"`` / ``"stability_undecided"``;
+* ``"stability_lost"`` / ``"stability_regained"`` / ``"stability_undecided"`` (the closed-form
+  verdict at the end of the move; its margin is computed from the previous move's eigenvector);
 * ``"ik_singularity"`` / ``"fk_singularity"``: the smooth singularity function ``det A_IK``
   / ``det A_FK`` changed sign;
 * ``"infeasible"`` / ``"feasible"``: the feasibility verdict changed (only with ``feasibility=True``);
@@ -28,7 +29,8 @@ from ..core.validation import as_triple
 from ..results import Solution
 from ..system import System
 from .continuation import continue_ik
-from .finish import build_solutions
+from ..analysis.stability import mechanism_stability
+from .finish import build_solutions, rod_modes
 from .ik import as_load
 
 __all__ = ["Tracker", "TrackStep", "TrackEvent"]
@@ -96,6 +98,7 @@ class Tracker:
         self.solution = solution
         self.feasibility = feasibility
         self.max_halvings = int(max_halvings)
+        self._pairs = None   # the current solution's lowest eigenvector (its margin's start)
         self._feas = self._check(solution) if feasibility else None
 
     def _check(self, sol: Solution):
@@ -131,7 +134,12 @@ class Tracker:
                 halvings += 1
             else:
                 break
-        new = build_solutions(self.system, self.mech, x, ch, self.load)[0]
+        # the stability: the closed form, and the margin from the previous eigenvector (afresh at
+        # a d-mode change; the discretisation restarts by itself when the carried one fails)
+        same = np.array_equal(rod_modes(self.system, x, ch)[0], np.asarray(self.solution.modes))
+        st = mechanism_stability(self.system, x, ch, margin=True, guess=self._pairs if same else None)
+        self._pairs = st.pairs
+        new = build_solutions(self.system, self.mech, x, ch, self.load, stability=st)[0]
         events = self._events(self.solution, new)
         reached = t >= 1.0 - 1e-12
         if not reached:

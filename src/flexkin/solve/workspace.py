@@ -15,25 +15,24 @@ at once), and classifies the new points.  Propagation stops
   ``range`` (revolute ranges modulo 360 deg), a bending strain over ``max_strain``, or (with
   ``collisions=True``) rods touching each other, themselves or the platform (purple boundary).
 
-**Stability along the wave.**  With the actuators locked, an equilibrium loses stability only
-where the second variation gains a zero eigenvalue, i.e. where ``A_FK`` is singular (paper
-§6: the FK singularities and the stability boundary coincide).  Along the wave the sign of
-``sing_fk`` is carried from cell to cell, so a cell reached without a sign change
-from a stable cell is stable.  ``stability="wave"`` therefore computes the whole
-second variation (:func:`~flexkin.analysis.stability.mechanism_stability`) only at the seed
-and where ``|sing_fk|`` has fallen below a tenth of its value at the source cell (an FK
-singularity may be close); ``stability="full"`` (default) computes it at every cell (every
-margin known, ~1 ms per cell).  Margins not computed are ``NaN``; :meth:`Workspace.margins`
-fills them in.  The wave's sign test is an approximation: a step that crosses two sign changes
-of ``det A_FK`` (a coarse grid), or a rod that buckles on its own while the chart's determinant
-keeps its sign, goes unnoticed -- on the unit 3-RFR with L = 1.1 m at 10 deg and a 0.1 m step
-it admitted a cell with margin -7.5 -- so it is opt-in, for fine grids where speed matters.
+**Stability at every cell.**  Every cell entered gets the closed-form verdict and index of
+:mod:`flexkin.analysis.stability` (the rods' Jacobi fields and a small bordered matrix, a few
+tens of microseconds; the discretised second variation where the closed form is not
+conclusive), so no cell is admitted on the strength of its neighbour (an earlier opt-in
+"wave" mode carried the sign of ``det A_FK`` from cell to cell instead, and on the unit 3-RFR
+with L = 1.1 m at 10 deg and a 0.1 m step it admitted a cell with margin -7.5; ``"wave"`` is
+now a synonym of ``"full"``).  The margin -- the smallest eigenvalue of the discretised
+second variation -- is computed where the closed form falls back, at every cell with
+``stability="margins"`` (each cell's eigenvector started from its source cell's, a full
+computation at a d-mode change or when the update fails), and on demand by
+:meth:`Workspace.margins`; elsewhere the maps hold ``NaN``.
 
 d-mode changes of a rod are followed (every d-mode is one strip of the rod chart).  A cell
 of the reached region is a boundary cell when one of its neighbours was not entered for one
 of these reasons.  **Grid edge**: with default bounds the box grows (same step, at most
 ``grow`` times) on every side the region touches, until it closes; reached cells still on the
-grid's outermost rows/columns are ``boundary_edge`` (the region is cut there).
+grid's outermost rows/columns are ``boundary_edge`` (the region is cut there).  A grown grid
+resumes every wave from its cells next to the new ones; the region mapped so far is kept.
 
 Aspects: started from every stable IK solution at the seed pose, the maps of seeds whose
 regions share a grid point with the same solution (inputs equal) are merged into one aspect.
@@ -43,13 +42,13 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any, Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..analysis.jacobian import kinematic_jacobians
-from ..analysis.stability import mechanism_stability
+from ..analysis.stability import Eigenpairs, mechanism_stability
 from ..core.budget import Deadline, Rate, timed_slices
 from ..core.validation import MAX_GRID_POINTS, check_max_mode
 from ..results import Solution
@@ -73,8 +72,6 @@ _NEIGHBOURS = ((1, 0), (-1, 0), (0, 1), (0, -1))
 #: map arrays stored by :meth:`Workspace.save`
 _MAP_ARRAYS = ("status", "inputs", "modes", "margin", "det_ik", "det_fk", "cond", "boundary_ik", "boundary_fk",
                "zrod", "boundary_seam", "charts", "violations", "strain", "boundary_infeasible", "boundary_edge")
-#: full stability check where |sing_fk| falls below this fraction of its source's value
-_FK_DROP = 0.1
 #: points per rod centre line for the collision checks of a workspace cell
 COLLISION_SAMPLES = 60
 #: seconds per cell of a wave (continuation, Jacobians, stability, checks) before anything is
@@ -244,7 +241,7 @@ class Workspace:
     constrained : bool
         Whether the wave stopped at infeasible cells (the maps then hold feasible cells only).
     stability : str
-        ``"wave"`` or ``"full"`` (see the module docstring).
+        ``"full"`` or ``"margins"`` (see the module docstring).
     grown : int
         How many times the default bounds were grown for the region to close.
     """
@@ -394,15 +391,7 @@ class Workspace:
             One per aspect, ``NaN`` outside the reached cells.
         """
         system = System.from_mechanism(mech)
-        out = []
-        for mp in self.maps:
-            mg = np.where(mp.reached, mp.margin, np.nan)
-            jj, ii = np.nonzero(mp.reached & ~np.isfinite(mg))
-            if jj.size:
-                x, ch = _cell_unknowns(system, self, mp, jj, ii)
-                mg[jj, ii] = mechanism_stability(system, x, ch).margin
-            out.append(mg)
-        return tuple(out)
+        return tuple(_fill_margins(system, self, mp) for mp in self.maps)
 
     def metrics(self, mech: Any = None) -> dict[str, Any]:
         """Workspace-level metrics at this orientation (issue 15; all areas in m^2 over the
@@ -451,6 +440,53 @@ class Workspace:
             s = out[f"abs_det_{key}"]
             out[f"det_{key}_ratio"] = s["min"] / s["max"] if s["max"] else None
         return out
+
+
+def _fill_margins(system: System, ws: "Workspace", mp: WorkspaceMap) -> NDArray[np.float64]:
+    """The margins of the reached cells of ``mp`` where they are ``NaN``, computed layer by
+    layer outwards from the reached cell nearest the seed, each cell's eigenvector started
+    from a computed neighbour's (:class:`~flexkin.analysis.stability.Eigenpairs`)."""
+    mg = np.where(mp.reached, mp.margin, np.nan)
+    todo = mp.reached & ~np.isfinite(mg)
+    if not np.any(todo):
+        return mg
+    jj, ii = np.nonzero(mp.reached)
+    d2 = (ws.x[ii] - ws.seed[0]) ** 2 + (ws.y[jj] - ws.seed[1]) ** 2
+    start = (int(jj[np.argmin(d2)]), int(ii[np.argmin(d2)]))
+    ny, nx = mp.status.shape
+    done = np.zeros((ny, nx), bool)
+    pairs: dict[tuple[int, int], tuple] = {}
+    layer, parent = [start], [None]
+    done[start] = True
+    while layer:
+        J = np.array([c[0] for c in layer])
+        I = np.array([c[1] for c in layer])
+        x, ch = _cell_unknowns(system, ws, mp, J, I)
+        width = max([pairs[p][1].shape[1] for p in parent if p is not None] + [1])
+        G = Eigenpairs(np.zeros((len(layer), 3), np.int64), np.zeros((len(layer), 3, width)),
+                       np.zeros((len(layer), 3)), np.zeros(len(layer), bool))
+        for k, p in enumerate(parent):
+            if p is not None:
+                E, R, P, V = pairs[p]
+                G.elements[k], G.pose[k], G.valid[k] = E, P, V
+                G.rods[k, :, :R.shape[1]] = R
+        st = mechanism_stability(system, x, ch, margin=True, guess=G)
+        new_pairs = {}
+        for k, c in enumerate(layer):
+            if todo[c]:
+                mg[c] = st.margin[k]
+            new_pairs[c] = (st.pairs.elements[k], st.pairs.rods[k], st.pairs.pose[k], st.pairs.valid[k])
+        pairs = new_pairs
+        nxt, par = [], []
+        for c in layer:
+            for dj, di in _NEIGHBOURS:
+                q = (c[0] + dj, c[1] + di)
+                if 0 <= q[0] < ny and 0 <= q[1] < nx and mp.reached[q] and not done[q]:
+                    done[q] = True
+                    nxt.append(q)
+                    par.append(c)
+        layer, parent = nxt, par
+    return mg
 
 
 def _cell_unknowns(system: System, ws: Workspace, mp: WorkspaceMap, jj: NDArray, ii: NDArray
@@ -631,149 +667,217 @@ class _CellChecks:
         return out
 
 
-def _propagate(m: System, x0: NDArray, c0: NDArray, seed_ij: tuple[int, int], X: NDArray, Y: NDArray,
-               theta: float, w: NDArray, claimed: list[tuple[NDArray, NDArray]], checks: _CellChecks,
-               constrained: bool, full: bool, progress: Callable[[int], None] | None,
-               deadline: Deadline | None = None) -> tuple[dict[str, NDArray], int, set[int]]:
-    """Wave propagation of one seed. Returns the map arrays, the number of continuation
-    steps, and the indices of earlier maps that this one joins (same solution at a cell)."""
-    ny, nx = len(Y), len(X)
-    status = np.zeros((ny, nx), np.int8)
-    lay = m.layout
-    sol = np.full((ny, nx, lay.n_unknowns), np.nan)
-    chs = np.zeros((ny, nx, 3), np.int64)
-    margin = np.full((ny, nx), np.nan)
-    dik = np.full((ny, nx), np.inf)
-    dfk = np.full((ny, nx), np.inf)
-    cond = np.full((ny, nx), np.inf)
-    sik = np.zeros((ny, nx))
-    sfk = np.zeros((ny, nx))
-    strain = np.full((ny, nx), np.nan)
-    viol = np.zeros((ny, nx), np.int8)
-    bik = np.zeros((ny, nx), bool)
-    bfk = np.zeros((ny, nx), bool)
-    bseam = np.zeros((ny, nx), bool)
-    binf = np.zeros((ny, nx), bool)
-    su = m.input_scale()
-    iu = lay.inputs
-    joins: set[int] = set()
+#: the arrays of a wave's state (besides the map arrays of :data:`_MAP_ARRAYS`)
+_FILL = {"status": (np.int8, UNVISITED), "margin": (float, np.nan), "det_ik": (float, np.inf),
+         "det_fk": (float, np.inf), "cond": (float, np.inf), "sik": (float, 0.0), "sfk": (float, 0.0),
+         "strain": (float, np.nan), "violations": (np.int8, 0), "boundary_ik": (bool, False),
+         "boundary_fk": (bool, False), "boundary_seam": (bool, False), "boundary_infeasible": (bool, False)}
 
-    j0, i0 = seed_ij
-    x0 = x0.copy()
-    x0[lay.pose] = (X[i0], Y[j0], theta)
-    st = mechanism_stability(m, x0[None], c0[None])
-    jac = kinematic_jacobians(m, x0[None], c0[None], w)
-    s0, v0 = checks(x0[None], c0[None])
-    status[j0, i0] = REACHED
-    sol[j0, i0], chs[j0, i0] = x0, c0
-    margin[j0, i0], dik[j0, i0], dfk[j0, i0], cond[j0, i0] = st.margin[0], jac.det_ik[0], jac.det_fk[0], jac.cond[0]
-    sik[j0, i0], sfk[j0, i0], strain[j0, i0], viol[j0, i0] = jac.sing_ik[0], jac.sing_fk[0], s0[0], v0[0]
-    front = [(j0, i0)]
-    steps = 0
-    dl = deadline if deadline is not None else Deadline()
-    rate = Rate(CELL_COST)
-    while front:
-        if dl.expired():
-            break
-        src, dst = [], []
-        seen: set[tuple[int, int]] = set()
-        for (j, i) in front:
-            for dj, di in _NEIGHBOURS:
-                jj, ii = j + dj, i + di
-                if 0 <= jj < ny and 0 <= ii < nx and status[jj, ii] == UNVISITED and (jj, ii) not in seen:
-                    seen.add((jj, ii))
-                    src.append((j, i))
-                    dst.append((jj, ii))
-        if not dst:
-            break
-        S_all, D_all = np.array(src), np.array(dst)
-        new_front = []
-        # the wave in slices, so that the time budget is looked at often enough
-        for lo, hi in timed_slices(len(D_all), dl, rate, max_slice=len(D_all)):
-            t_slice = time.perf_counter()
-            S, D = S_all[lo:hi], D_all[lo:hi]
-            xs = sol[S[:, 0], S[:, 1]]
-            cs = chs[S[:, 0], S[:, 1]]
-            p1 = np.stack([X[D[:, 1]], Y[D[:, 0]], np.full(len(D), theta)], -1)
-            xn, cn, ok = _continue_adaptive(m, xs, cs, p1, w)
-            steps += len(D)
-            idx = np.flatnonzero(ok)
-            if idx.size:
-                jac = kinematic_jacobians(m, xn[idx], cn[idx], w)
-                Sj, Si = S[idx, 0], S[idx, 1]
-                crossed_ik = np.sign(jac.sing_ik) != np.sign(sik[Sj, Si])
-                crossed_fk = np.sign(jac.sing_fk) != np.sign(sfk[Sj, Si])
-                # stability along the wave: the whole second variation where det A_FK dropped
-                stable = np.ones(idx.size, bool)
-                mg = np.full(idx.size, np.nan)
-                chk = ~crossed_ik & ~crossed_fk
-                if not full:
-                    chk &= np.abs(jac.sing_fk) < _FK_DROP * np.abs(sfk[Sj, Si])
-                if np.any(chk):
-                    st = mechanism_stability(m, xn[idx[chk]], cn[idx[chk]])
-                    stable[chk] = st.stable == 1
-                    mg[chk] = st.margin
-                cstrain, cviol = checks(xn[idx], cn[idx])
-                for k, r in enumerate(idx):
+
+class _Wave:
+    """The wave propagation of one seed solution (module docstring): its state arrays on the
+    grid, which it can grow (padding them) and resume from the cells next to the new ones."""
+
+    def __init__(self, m: System, shape: tuple[int, int], theta: float, w: NDArray, checks: _CellChecks,
+                 constrained: bool, margins: bool) -> None:
+        self.m, self.theta, self.w, self.checks = m, theta, w, checks
+        self.constrained, self.margins = constrained, margins
+        ny, nx = shape
+        self.a = {k: np.full(shape, v, dt) for k, (dt, v) in _FILL.items()}
+        self.a["sol"] = np.full((ny, nx, m.layout.n_unknowns), np.nan)
+        self.a["charts"] = np.zeros((ny, nx, 3), np.int64)
+        self.pairs: dict[tuple[int, int], tuple] = {}   # eigenvectors of the front (margins mode)
+        self.joins: set[int] = set()
+        self.steps = 0
+        self.rate = Rate(CELL_COST)   # seconds per cell, sizing the slices under a time budget
+
+    def seed(self, x0: NDArray, c0: NDArray, ij: tuple[int, int], X: NDArray, Y: NDArray) -> None:
+        """Place the seed solution at cell ``ij``."""
+        a, m = self.a, self.m
+        j0, i0 = ij
+        x0 = x0.copy()
+        x0[m.layout.pose] = (X[i0], Y[j0], self.theta)
+        st = mechanism_stability(m, x0[None], c0[None], margin=self.margins)
+        jac = kinematic_jacobians(m, x0[None], c0[None], self.w)
+        s0, v0 = self.checks(x0[None], c0[None])
+        a["status"][j0, i0] = REACHED
+        a["sol"][j0, i0], a["charts"][j0, i0] = x0, c0
+        for name, v in (("margin", st.margin), ("det_ik", jac.det_ik), ("det_fk", jac.det_fk), ("cond", jac.cond),
+                        ("sik", jac.sing_ik), ("sfk", jac.sing_fk), ("strain", s0), ("violations", v0)):
+            a[name][j0, i0] = v[0]
+        self._keep_pairs(st.pairs, [(j0, i0)], [0])
+
+    def _keep_pairs(self, pairs, cells, rows) -> None:
+        if self.margins and pairs is not None:
+            for c, r in zip(cells, rows):
+                self.pairs[c] = (pairs.elements[r], pairs.rods[r], pairs.pose[r], pairs.valid[r])
+
+    def _guess(self, src: list[tuple[int, int]], pairs: dict[tuple[int, int], tuple]):
+        """The source cells' eigenvectors (``pairs``, by cell) as the start of the new cells'
+        (margins mode)."""
+        if not self.margins or not src:
+            return None
+        have = [pairs.get(c) for c in src]
+        width = max((h[1].shape[1] for h in have if h is not None), default=1)
+        E = np.zeros((len(src), 3), np.int64)
+        R = np.zeros((len(src), 3, width))
+        P = np.zeros((len(src), 3))
+        V = np.zeros(len(src), bool)
+        for k, h in enumerate(have):
+            if h is not None:
+                E[k], P[k], V[k] = h[0], h[2], h[3]
+                R[k, :, :h[1].shape[1]] = h[1]
+        return Eigenpairs(E, R, P, V)
+
+    def grow(self, before: tuple[int, int], shape: tuple[int, int]) -> None:
+        """Pad the state to the grown grid: ``before`` = (rows, columns) added below and left."""
+        dj, di = before
+        ny, nx = shape
+        for k, v in self.a.items():
+            dt, fill = (v.dtype, np.nan) if k == "sol" else ((v.dtype, 0) if k == "charts" else _FILL[k])
+            out = np.full((ny, nx) + v.shape[2:], fill, dtype=v.dtype)
+            out[dj:dj + v.shape[0], di:di + v.shape[1]] = v
+            self.a[k] = out
+        self.pairs = {(j + dj, i + di): p for (j, i), p in self.pairs.items()}
+
+    def edge_front(self, inner: tuple[slice, slice]) -> list[tuple[int, int]]:
+        """Reached cells of the old grid (``inner``) with a neighbour outside it: where a
+        resumed wave continues."""
+        reached = self.a["status"] == REACHED
+        old = np.zeros_like(reached)
+        old[inner] = True
+        near_new = _next_to(~old)
+        jj, ii = np.nonzero(reached & old & near_new)
+        return list(zip(jj.tolist(), ii.tolist()))
+
+    def run(self, front: list[tuple[int, int]], X: NDArray, Y: NDArray, claimed: list[tuple[NDArray, NDArray]],
+            progress: Callable[[int], None] | None, deadline: Deadline) -> None:
+        """Propagate from ``front`` until the wave stops (module docstring) or the ``deadline``
+        expires (the front is advanced in slices, so that the clock is looked at often enough)."""
+        m, a = self.m, self.a
+        lay = m.layout
+        status, sol, chs = a["status"], a["sol"], a["charts"]
+        ny, nx = status.shape
+        su = m.input_scale()
+        iu = lay.inputs
+        while front:
+            if deadline.expired():
+                break
+            src, dst = [], []
+            seen: set[tuple[int, int]] = set()
+            for (j, i) in front:
+                for dj, di in _NEIGHBOURS:
+                    jj, ii = j + dj, i + di
+                    if 0 <= jj < ny and 0 <= ii < nx and status[jj, ii] == UNVISITED and (jj, ii) not in seen:
+                        seen.add((jj, ii))
+                        src.append((j, i))
+                        dst.append((jj, ii))
+            if not dst:
+                break
+            S_all, D_all = np.array(src), np.array(dst)
+            new_front = []
+            source_pairs, self.pairs = self.pairs, {}
+            for lo, hi in timed_slices(len(D_all), deadline, self.rate, max_slice=len(D_all)):
+                t_slice = time.perf_counter()
+                S, D = S_all[lo:hi], D_all[lo:hi]
+                xs = sol[S[:, 0], S[:, 1]]
+                cs = chs[S[:, 0], S[:, 1]]
+                p1 = np.stack([X[D[:, 1]], Y[D[:, 0]], np.full(len(D), self.theta)], -1)
+                xn, cn, ok = _continue_adaptive(m, xs, cs, p1, self.w)
+                self.steps += len(D)
+                idx = np.flatnonzero(ok)
+                if idx.size:
+                    jac = kinematic_jacobians(m, xn[idx], cn[idx], self.w)
+                    Sj, Si = S[idx, 0], S[idx, 1]
+                    crossed_ik = np.sign(jac.sing_ik) != np.sign(a["sik"][Sj, Si])
+                    crossed_fk = np.sign(jac.sing_fk) != np.sign(a["sfk"][Sj, Si])
+                    # stability at every cell: the closed-form index (and the margin, carried from
+                    # the source cell's eigenvector, in the margins mode)
+                    stable = np.ones(idx.size, bool)
+                    mg = np.full(idx.size, np.nan)
+                    chk = np.flatnonzero(~crossed_ik & ~crossed_fk)
+                    st = None
+                    if chk.size:
+                        rows = idx[chk]
+                        guess = self._guess([tuple(S[r]) for r in rows], source_pairs)
+                        if guess is not None:
+                            # a d-mode change restarts the eigenvector from scratch
+                            same = np.all(rod_modes(m, xn[rows], cn[rows]) == rod_modes(m, xs[rows], cs[rows]), axis=1)
+                            guess = Eigenpairs(guess.elements, guess.rods, guess.pose, guess.valid & same)
+                        st = mechanism_stability(m, xn[rows], cn[rows], margin=self.margins, guess=guess)
+                        stable[chk] = st.stable == 1
+                        mg[chk] = st.margin
+                    pos = {int(k): q for q, k in enumerate(chk)}
+                    cstrain, cviol = self.checks(xn[idx], cn[idx])
+                    kept_cells, kept_rows = [], []
+                    for k, r in enumerate(idx):
+                        jj, ii = D[r]
+                        j, i = S[r]
+                        if crossed_ik[k]:
+                            status[jj, ii] = FAILED
+                            a["boundary_ik"][j, i] = True
+                            continue
+                        if crossed_fk[k] or not stable[k]:
+                            status[jj, ii] = UNSTABLE
+                            a["boundary_fk"][j, i] = True
+                            continue
+                        if self.constrained and cviol[k]:
+                            status[jj, ii] = INFEASIBLE
+                            a["violations"][jj, ii] = cviol[k]
+                            a["boundary_infeasible"][j, i] = True
+                            continue
+                        status[jj, ii] = REACHED
+                        sol[jj, ii], chs[jj, ii] = xn[r], cn[r]
+                        a["margin"][jj, ii], a["det_ik"][jj, ii], a["det_fk"][jj, ii] = mg[k], jac.det_ik[k], jac.det_fk[k]
+                        a["cond"][jj, ii], a["sik"][jj, ii], a["sfk"][jj, ii] = jac.cond[k], jac.sing_ik[k], jac.sing_fk[k]
+                        a["strain"][jj, ii], a["violations"][jj, ii] = cstrain[k], cviol[k]
+                        if k in pos:
+                            kept_cells.append((int(jj), int(ii)))
+                            kept_rows.append(pos[k])
+                        # joining a region mapped from an earlier seed: same solution at this cell
+                        hit = False
+                        for q, (st_q, sol_q) in enumerate(claimed):
+                            if st_q[jj, ii] == REACHED and np.max(np.abs(sol_q[jj, ii, iu] - xn[r, iu]) / su) < 1e-6:
+                                self.joins.add(q)
+                                hit = True
+                        if not hit:
+                            new_front.append((int(jj), int(ii)))
+                    if st is not None:
+                        self._keep_pairs(st.pairs, kept_cells, kept_rows)
+                for r in np.flatnonzero(~ok):
                     jj, ii = D[r]
                     j, i = S[r]
-                    if crossed_ik[k]:
+                    taut = np.array([(cs[r, i] == CHART_UNIFIED and abs(xs[r, lay.rod[i].start]) > SEAM_V)
+                                     or cs[r, i] == 1 for i in range(3)])
+                    if np.any(taut) and not np.any(taut & m.angular):
+                        # a rod of a prismatic or length leg is close to straight under tension, where
+                        # the elliptic chart has its seam: the step failed for the chart, not for the
+                        # mechanism (a revolute leg's taut rod is at its reach |B - A| = L instead:
+                        # a true boundary)
+                        if status[jj, ii] == UNVISITED:
+                            status[jj, ii] = SEAM
+                        a["boundary_seam"][j, i] = True
+                        continue
+                    if status[jj, ii] in (UNVISITED, SEAM):
                         status[jj, ii] = FAILED
-                        bik[j, i] = True
-                        continue
-                    if crossed_fk[k] or not stable[k]:
-                        status[jj, ii] = UNSTABLE
-                        bfk[j, i] = True
-                        continue
-                    if constrained and cviol[k]:
-                        status[jj, ii] = INFEASIBLE
-                        viol[jj, ii] = cviol[k]
-                        binf[j, i] = True
-                        continue
-                    status[jj, ii] = REACHED
-                    sol[jj, ii], chs[jj, ii] = xn[r], cn[r]
-                    margin[jj, ii], dik[jj, ii], dfk[jj, ii] = mg[k], jac.det_ik[k], jac.det_fk[k]
-                    cond[jj, ii], sik[jj, ii], sfk[jj, ii] = jac.cond[k], jac.sing_ik[k], jac.sing_fk[k]
-                    strain[jj, ii], viol[jj, ii] = cstrain[k], cviol[k]
-                    # joining a region mapped from an earlier seed: same solution at this cell
-                    hit = False
-                    for q, (st_q, sol_q) in enumerate(claimed):
-                        if st_q[jj, ii] == REACHED and np.max(np.abs(sol_q[jj, ii, iu] - xn[r, iu]) / su) < 1e-6:
-                            joins.add(q)
-                            hit = True
-                    if not hit:
-                        new_front.append((jj, ii))
-            for r in np.flatnonzero(~ok):
-                jj, ii = D[r]
-                j, i = S[r]
-                taut = np.array([(cs[r, i] == CHART_UNIFIED and abs(xs[r, lay.rod[i].start]) > SEAM_V) or cs[r, i] == 1
-                                 for i in range(3)])
-                if np.any(taut) and not np.any(taut & m.angular):
-                    # a rod of a prismatic or length leg is close to straight under tension, where
-                    # the elliptic chart has its seam: the step failed for the chart, not for the
-                    # mechanism (a revolute leg's taut rod is at its reach |B - A| = L instead:
-                    # a true boundary)
-                    if status[jj, ii] == UNVISITED:
-                        status[jj, ii] = SEAM
-                    bseam[j, i] = True
-                    continue
-                if status[jj, ii] in (UNVISITED, SEAM):
-                    status[jj, ii] = FAILED
-                bik[j, i] = True
-            if progress is not None:
-                progress(len(D))
-            rate.add(len(D), time.perf_counter() - t_slice)
-        front = new_front
-    # a neighbour reached from elsewhere later does not make a cell a boundary
-    reached = status == REACHED
-    bik &= reached
-    bfk &= reached
-    bseam &= reached & ~bik & ~bfk
-    ok_cells = reached & (viol == 0)
-    binf = (binf | _next_to(reached & (viol != 0))) & ok_cells
-    return ({"status": status, "sol": sol, "charts": chs, "margin": margin, "det_ik": dik, "det_fk": dfk, "cond": cond,
-             "boundary_ik": bik, "boundary_fk": bfk, "boundary_seam": bseam, "violations": viol, "strain": strain,
-             "boundary_infeasible": binf}, steps, joins)
+                    a["boundary_ik"][j, i] = True
+                if progress is not None:
+                    progress(len(D))
+                self.rate.add(len(D), time.perf_counter() - t_slice)
+            front = new_front
+
+    def arrays(self) -> dict[str, NDArray]:
+        """The map arrays (copies), boundaries cleaned: a neighbour reached from elsewhere later
+        does not make a cell a boundary."""
+        out = {k: v.copy() for k, v in self.a.items() if k not in ("sik", "sfk")}
+        reached = out["status"] == REACHED
+        out["boundary_ik"] &= reached
+        out["boundary_fk"] &= reached
+        out["boundary_seam"] &= reached & ~out["boundary_ik"] & ~out["boundary_fk"]
+        ok_cells = reached & (out["violations"] == 0)
+        out["boundary_infeasible"] = (out["boundary_infeasible"] | _next_to(reached & (out["violations"] != 0))) \
+            & ok_cells
+        return out
 
 
 def _merge_into(new: dict[str, NDArray], old: dict[str, NDArray]) -> None:
@@ -790,58 +894,94 @@ def _merge_into(new: dict[str, NDArray], old: dict[str, NDArray]) -> None:
         new[name] &= reached
 
 
-def _map_all(m: System, starts: list[tuple[int, NDArray, NDArray]], ij: tuple[int, int], X: NDArray, Y: NDArray,
-             th: float, w: NDArray, checks: _CellChecks, constrained: bool, full: bool,
-             cb: Callable[[int], None] | None, deadline: Deadline) -> tuple[list[WorkspaceMap], int]:
-    """The maps of every seed solution on the grid ``X`` x ``Y`` (merged aspects, largest first)."""
-    j0, i0 = ij
-    raw: list[dict[str, NDArray]] = []
-    seeds: list[list[int]] = []
-    claimed: list[tuple[NDArray, NDArray]] = []
-    total = 0
-    iu = m.layout.inputs
-    for k, x0, c0 in starts:
-        # a seed already inside a mapped region (same solution at the seed cell) adds nothing
-        dup = [q for q, (st_q, sol_q) in enumerate(claimed)
-               if st_q[j0, i0] == REACHED and np.allclose(sol_q[j0, i0, iu], x0[iu], atol=1e-9 * m.L_ref)]
-        if dup:
-            seeds[dup[0]].append(k)
-            continue
-        if deadline.expired():
-            break
-        maps_k, n, joins = _propagate(m, x0, c0, (j0, i0), X, Y, th, w, claimed, checks, constrained, full, cb,
-                                      deadline)
-        total += n
-        for q in sorted(joins):
-            _merge_into(maps_k, raw[q])
-        raw.append(maps_k)
-        seeds.append([k])
-        claimed.append((maps_k["status"], maps_k["sol"]))
-        for q in sorted(joins):
-            seeds[-1].extend(seeds[q])
-            seeds[q] = []
-    maps = []
-    for r, s in zip(raw, seeds):
-        if not s:
-            continue  # merged into a later one
-        sol = r.pop("sol")
-        reached = r["status"] == REACHED
-        modes = np.zeros(sol.shape[:2] + (3,), np.int8)
-        if np.any(reached):
-            modes[reached] = rod_modes(m, sol[reached], r["charts"][reached])
-        maps.append(WorkspaceMap(inputs=np.nan_to_num(sol[..., iu]), modes=modes, seeds=tuple(sorted(set(s))),
-                                 zrod=np.nan_to_num(sol[..., :m.layout.n_rod]), boundary_edge=_ring(reached), **r))
-    maps.sort(key=lambda mp: -mp.area_cells)
-    return maps, total
+class _Aspects:
+    """The waves of every seed solution on one grid (resumable when the grid grows)."""
+
+    def __init__(self, m: System, starts: list[tuple[int, NDArray, NDArray]], theta: float, w: NDArray,
+                 checks: _CellChecks, constrained: bool, margins: bool) -> None:
+        self.m, self.starts, self.theta, self.w = m, starts, theta, w
+        self.checks, self.constrained, self.margins = checks, constrained, margins
+        self.waves: list[_Wave] = []
+        self.seeds: list[list[int]] = []
+
+    @property
+    def steps(self) -> int:
+        """Continuation steps attempted."""
+        return sum(wv.steps for wv in self.waves)
+
+    def reached(self) -> NDArray[np.bool_]:
+        """Cells reached by any wave."""
+        out = np.zeros(self.waves[0].a["status"].shape if self.waves else (0, 0), bool)
+        for wv in self.waves:
+            out |= wv.a["status"] == REACHED
+        return out
+
+    def _claimed(self, k: int) -> list[tuple[NDArray, NDArray]]:
+        return [(wv.a["status"], wv.a["sol"]) for wv in self.waves[:k]]
+
+    def run(self, ij: tuple[int, int], X: NDArray, Y: NDArray, cb, deadline: Deadline) -> None:
+        """Start a wave from every seed solution at cell ``ij``."""
+        j0, i0 = ij
+        iu = self.m.layout.inputs
+        for k, x0, c0 in self.starts:
+            # a seed already inside a mapped region (same solution at the seed cell) adds nothing
+            dup = [q for q, wv in enumerate(self.waves) if wv.a["status"][j0, i0] == REACHED
+                   and np.allclose(wv.a["sol"][j0, i0, iu], x0[iu], atol=1e-9 * self.m.L_ref)]
+            if dup:
+                self.seeds[dup[0]].append(k)
+                continue
+            if deadline.expired():
+                break
+            wv = _Wave(self.m, (len(Y), len(X)), self.theta, self.w, self.checks, self.constrained, self.margins)
+            wv.seed(x0, c0, ij, X, Y)
+            wv.run([ij], X, Y, self._claimed(len(self.waves)), cb, deadline)
+            self.waves.append(wv)
+            self.seeds.append([k])
+
+    def grow(self, before: tuple[int, int], old_shape: tuple[int, int], X: NDArray, Y: NDArray, cb,
+             deadline: Deadline) -> None:
+        """Pad every wave to the grown grid and resume it from its cells next to the new ones
+        (the wave is not restarted)."""
+        inner = (slice(before[0], before[0] + old_shape[0]), slice(before[1], before[1] + old_shape[1]))
+        for wv in self.waves:
+            wv.grow(before, (len(Y), len(X)))
+        for k, wv in enumerate(self.waves):
+            wv.run(wv.edge_front(inner), X, Y, self._claimed(k), cb, deadline)
+
+    def maps(self) -> list[WorkspaceMap]:
+        """The merged aspects, largest first."""
+        m = self.m
+        iu = m.layout.inputs
+        raw = []
+        seeds = [list(s) for s in self.seeds]
+        for k, wv in enumerate(self.waves):
+            r = wv.arrays()
+            for q in sorted(wv.joins):
+                _merge_into(r, raw[q])
+            raw.append(r)
+            for q in sorted(wv.joins):
+                seeds[k].extend(seeds[q])
+                seeds[q] = []
+        maps = []
+        for r, s in zip(raw, seeds):
+            if not s:
+                continue  # merged into a later one
+            sol = r.pop("sol")
+            reached = r["status"] == REACHED
+            modes = np.zeros(sol.shape[:2] + (3,), np.int8)
+            if np.any(reached):
+                modes[reached] = rod_modes(m, sol[reached], r["charts"][reached])
+            maps.append(WorkspaceMap(inputs=np.nan_to_num(sol[..., iu]), modes=modes, seeds=tuple(sorted(set(s))),
+                                     zrod=np.nan_to_num(sol[..., :m.layout.n_rod]), boundary_edge=_ring(reached),
+                                     **r))
+        maps.sort(key=lambda mp: -mp.area_cells)
+        return maps
 
 
-def _grown(X: NDArray, Y: NDArray, maps: Sequence[WorkspaceMap]) -> tuple[NDArray, NDArray] | None:
-    """The grid grown by half its size (same step) on every side a region touches, or
-    ``None`` if no region touches the grid's edge."""
+def _grown(X: NDArray, Y: NDArray, u: NDArray[np.bool_]) -> tuple[NDArray, NDArray] | None:
+    """The grid grown by half its size (same step) on every side the reached cells ``u``
+    touch, or ``None`` if they do not touch the grid's edge."""
     h = X[1] - X[0] if len(X) > 1 else Y[1] - Y[0]
-    u = np.zeros((len(Y), len(X)), bool)
-    for mp in maps:
-        u |= mp.reached
     sides = (u[:, 0].any(), u[:, -1].any(), u[0].any(), u[-1].any())
     if not any(sides):
         return None
@@ -949,9 +1089,10 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
         Largest number of times the grid grows (by half its size, same step) on the sides
         a region touches; default 3 with default ``bounds``, 0 with given ``bounds``.  Cells
         still on the edge are ``boundary_edge``.
-    stability : {"wave", "full"}
-        Stability computed at every cell (``"full"``, default), or carried along the wave by
-        the sign of ``sing_fk`` (``"wave"``: faster, an approximation; see the module docstring).
+    stability : {"full", "margins", "wave"}
+        The stability verdict at every cell from the closed form (``"full"``, default; margins
+        where it falls back), and with ``"margins"`` also the margin at every cell, carried
+        along the wave (module docstring).  ``"wave"`` is a synonym of ``"full"``.
     seed_search : bool
         When the seed pose has no stable IK solution (with ``constrained``: no feasible one),
         look for seeds elsewhere on the orientation slice: the poses of a 7 x 7 lattice over
@@ -968,8 +1109,10 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
     th = float(theta)
     if not np.isfinite(th):
         raise ValueError(f"theta must be finite, got {theta!r}")
-    if stability not in ("wave", "full"):
-        raise ValueError(f"stability must be 'wave' or 'full', got {stability!r}")
+    if stability not in ("full", "margins", "wave"):
+        raise ValueError(f"stability must be 'full', 'margins' or 'wave', got {stability!r}")
+    if stability == "wave":
+        stability = "full"
     if grow is None:
         grow = 3 if bounds is None else 0
     if isinstance(grow, bool) or not isinstance(grow, (int, np.integer)) or grow < 0:
@@ -1034,19 +1177,21 @@ def workspace(mech: Any, theta: float, seed: ArrayLike | Solution | None = None,
         cb = bar.update
     elif callable(progress):
         cb = progress
-    total, grown = 0, 0
-    while True:
-        maps, n = _map_all(m, starts, (j0, i0), X, Y, th, w, checks, constrained, stability == "full", cb, dl)
-        total += n
-        if grown >= grow or dl.expired():
-            break
-        bigger = _grown(X, Y, maps)
+    aspects = _Aspects(m, starts, th, w, checks, constrained, stability == "margins")
+    aspects.run((j0, i0), X, Y, cb, dl)
+    grown = 0
+    while grown < grow and not dl.expired():
+        bigger = _grown(X, Y, aspects.reached())
         if bigger is None:
             break
-        i0 += int(np.count_nonzero(bigger[0] < X[0]))
-        j0 += int(np.count_nonzero(bigger[1] < Y[0]))
+        before = (int(np.count_nonzero(bigger[1] < Y[0])), int(np.count_nonzero(bigger[0] < X[0])))
+        old_shape = (len(Y), len(X))
+        j0 += before[0]
+        i0 += before[1]
         X, Y = bigger
+        aspects.grow(before, old_shape, X, Y, cb, dl)
         grown += 1
+    maps, total = aspects.maps(), aspects.steps
     if bar is not None:
         bar.close()
     if dl.hit:
