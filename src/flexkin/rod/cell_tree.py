@@ -7,10 +7,9 @@ cells; their boxes are padded by a fraction of their extent because the closed f
 between grid nodes.  Each node also carries the chart coordinates of its centre and its half
 extent in the chart, for the leaf test of the searches.
 
-Two trees exist: over the pinned rods' atlas (:mod:`flexkin.rod.atlas`, chart ``(v, phis)``,
-with the seam patch of :mod:`flexkin.rod.seam_atlas` for the rods near straight under tension)
-and over the clamped rods' wrench atlas (:mod:`flexkin.rod.wrench_atlas`, chart
-``(a, b, m0)``, periodic in the force direction).  Both are cached on disk.
+The tree is over the pinned rods' atlas (:mod:`flexkin.rod.atlas`, chart ``(v, phis)``), with
+the seam patch of :mod:`flexkin.rod.seam_atlas` for the rods near straight under tension; it is
+cached on disk.  (Clamped rods are searched on the pose lattice, :mod:`flexkin.solve.fk_lattice`.)
 """
 
 from __future__ import annotations
@@ -26,9 +25,9 @@ from ..core.cache import cached_arrays
 from .atlas import MODE_MARGIN, get_atlas
 from .closed_form import SEAM_OFFSET, is_seam
 from .seam_atlas import T_MAX, get_seam_atlas
-from .slots import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, NQ
+from .slots import CHART_SEAM, CHART_UNIFIED, NQ
 
-__all__ = ["CellTree", "pinned_tree", "clamped_tree"]
+__all__ = ["CellTree", "pinned_tree"]
 
 #: relative padding of a leaf's bounds
 PAD = 0.1
@@ -72,15 +71,11 @@ def _centre_rods(chart: int, zc: NDArray) -> dict[str, NDArray]:
     return {"q": q, "g": g}
 
 
-def _build(blo: NDArray, bhi: NDArray, bzc: NDArray, bzh: NDArray, keep: NDArray,
-           weights: NDArray | None = None) -> dict[str, NDArray]:
+def _build(blo: NDArray, bhi: NDArray, bzc: NDArray, bzh: NDArray, keep: NDArray) -> dict[str, NDArray]:
     """A tree over blocks given by their bounds (nb0, nb1, nb2, 6), centres and half extents
     (nb0, nb1, nb2, 3); blocks with ``keep`` False are left out.
 
-    Without ``weights`` a node is split in the middle of its longest index range; with
-    ``weights`` (6,) along the index dimension whose halves have the smallest weighted box
-    extents (a k-d split in the space of the bounded quantities, so that the boxes the searches
-    test shrink fastest)."""
+    A node is split in the middle of its longest index range."""
     nb = blo.shape[:3]
     lo_l, hi_l, ch_l, zc_l, zh_l = [], [], [], [], []
 
@@ -100,27 +95,7 @@ def _build(blo: NDArray, bhi: NDArray, bzc: NDArray, bzh: NDArray, keep: NDArray
             lo_l[idx], hi_l[idx] = blo[i0, j0, k0], bhi[i0, j0, k0]
             zc_l[idx], zh_l[idx] = bzc[i0, j0, k0], bzh[i0, j0, k0]
             return idx
-        if weights is None:
-            d = int(np.argmax(sizes))
-        else:
-            best = np.inf
-            d = 0
-            for dd in range(3):
-                if sizes[dd] < 2:
-                    continue
-                m = [(i0 + i1) // 2, (j0 + j1) // 2, (k0 + k1) // 2][dd]
-                cost = 0.0
-                for half in ((box[dd][0], m), (m, box[dd][1])):
-                    sub = [list(b) for b in box]
-                    sub[dd] = list(half)
-                    sel = keep[sub[0][0]:sub[0][1], sub[1][0]:sub[1][1], sub[2][0]:sub[2][1]]
-                    if not sel.any():
-                        continue
-                    lo_ = blo[sub[0][0]:sub[0][1], sub[1][0]:sub[1][1], sub[2][0]:sub[2][1]][sel].min(0)
-                    hi_ = bhi[sub[0][0]:sub[0][1], sub[1][0]:sub[1][1], sub[2][0]:sub[2][1]][sel].max(0)
-                    cost = max(cost, float(np.max((hi_ - lo_) * weights)))
-                if cost < best:
-                    best, d = cost, dd
+        d = int(np.argmax(sizes))
         mid = [(i0 + i1) // 2, (j0 + j1) // 2, (k0 + k1) // 2][d]
         left, right = [list(b) for b in box], [list(b) for b in box]
         left[d][1] = mid
@@ -217,38 +192,6 @@ def pinned_tree(max_mode: int, stride: int = 4) -> CellTree:
     return CellTree(CHART_UNIFIED, t["lo"], t["hi"], t["child"], t["zc"], t["zh"], t["q"], t["g"])
 
 
-def _block_grid(F: NDArray, valid: NDArray, stride: int, periodic_j: bool = False):
-    """Block bounds, wrench centres/extents and ``keep`` flags of a 3-D atlas ``F``
-    (n0, n1, n2, FEATURES) in blocks of ``stride``^3 cells."""
-    n0, n1, n2 = F.shape[:3]
-    ii = np.arange(0, n0 - 1, stride)
-    jj = np.arange(0, n1 - 1, stride)
-    kk = np.arange(0, n2 - 1, stride)
-    shape = (len(ii), len(jj), len(kk))
-    blo = np.zeros(shape + (6,))
-    bhi = np.zeros(shape + (6,))
-    bzc = np.zeros(shape + (3,))
-    bzh = np.zeros(shape + (3,))
-    keep = np.zeros(shape, bool)
-    for a, i in enumerate(ii):
-        i1 = min(i + stride, n0 - 1)
-        for b, j in enumerate(jj):
-            j1 = min(j + stride, n1 - 1)
-            for c, k in enumerate(kk):
-                k1 = min(k + stride, n2 - 1)
-                sub = F[i:i1 + 1, j:j1 + 1, k:k1 + 1].reshape(-1, F.shape[-1])
-                ok = valid[i:i1 + 1, j:j1 + 1, k:k1 + 1].reshape(-1)
-                if not ok.any() or not np.all(np.isfinite(sub[:, :9])):
-                    continue
-                keep[a, b, c] = True
-                blo[a, b, c], bhi[a, b, c] = _pad(sub[:, :6].min(0), sub[:, :6].max(0))
-                w = sub[:, 6:9]
-                ctr = F[(i + i1) // 2, (j + j1) // 2, (k + k1) // 2, 6:9]
-                bzc[a, b, c] = ctr
-                bzh[a, b, c] = np.max(np.abs(w - ctr), axis=0)
-    return blo, bhi, bzc, bzh, keep
-
-
 def _merge(t1: dict[str, NDArray], t2: dict[str, NDArray]) -> dict[str, NDArray]:
     """Two trees under one new root."""
     n1 = len(t1["lo"])
@@ -261,30 +204,3 @@ def _merge(t1: dict[str, NDArray], t2: dict[str, NDArray]) -> dict[str, NDArray]
             "child": np.concatenate([[[1, n1 + 1]], child1, child2]).astype(np.int64),
             "zc": np.concatenate([[0.5 * (zlo + zhi)], t1["zc"], t2["zc"]]),
             "zh": np.concatenate([[0.5 * (zhi - zlo)], t1["zh"], t2["zh"]])}
-
-
-@lru_cache(maxsize=4)
-def clamped_tree(max_mode: int, stride: int = 2) -> CellTree:
-    """Tree over the clamped rods, sampled in the libration and rotation charts of
-    :mod:`flexkin.rod.free_atlas` (well conditioned near the separatrix), with leaves of
-    ``stride``^3 cells; the nodes' chart coordinates are base wrenches (the wrench chart)."""
-    from .free_atlas import FEATURES, fill_libration, fill_rotation, libration_grid, rotation_grid
-    from .wrench_atlas import lambda_max, turning_max
-
-    def build():
-        weights = np.array([1.0, 1.0, 0.0, 0.0, 1.0 / np.pi, 0.0])
-        trees = []
-        for grid, fill in ((libration_grid, fill_libration), (rotation_grid, fill_rotation)):
-            a, b, c = grid(max_mode)
-            F = np.empty((len(a), len(b), len(c), FEATURES))
-            fill(a, b, c, F)
-            valid = ((F[..., 9] <= lambda_max(max_mode)) & (F[..., 10] <= max_mode)
-                     & (np.abs(F[..., 4]) <= turning_max(max_mode) + 1e-9) & np.all(np.isfinite(F), axis=-1))
-            blo, bhi, bzc, bzh, keep = _block_grid(F, valid, stride)
-            trees.append(_build(blo, bhi, bzc, bzh, keep, weights=weights))
-        t = _merge(*trees)
-        t.update(_centre_rods(CHART_WRENCH, t["zc"]))
-        return t
-
-    t = cached_arrays("clamped-tree", (max_mode, stride, PAD, "elliptic", "q"), build)
-    return CellTree(CHART_WRENCH, t["lo"], t["hi"], t["child"], t["zc"], t["zh"], t["q"], t["g"])

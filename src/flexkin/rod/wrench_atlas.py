@@ -117,10 +117,3 @@ def get_wrench_atlas(max_mode: int) -> WrenchAtlas:
     a = cached_arrays("wrench-atlas", (max_mode, N_LAM, N_PSI, N_T, 2), build)
     valid = (a["mode"] <= max_mode) & (np.abs(a["th"]) <= turning_max(max_mode)) & np.isfinite(a["x"])
     return WrenchAtlas(max_mode, lam, psi, t, a["x"], a["y"], a["th"], a["ml"], a["mode"], valid)
-
-
-def cell_corners(A: NDArray) -> NDArray:
-    """The 8 corner values (8, n_lam - 1, n_psi, n_t - 1) of every grid cell (``psi`` periodic)."""
-    An = np.roll(A, -1, axis=1)
-    return np.stack([A[:-1, :, :-1], A[1:, :, :-1], An[:-1, :, :-1], An[1:, :, :-1],
-                     A[:-1, :, 1:], A[1:, :, 1:], An[:-1, :, 1:], An[1:, :, 1:]])

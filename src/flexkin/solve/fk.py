@@ -94,7 +94,7 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         nodes = stats.combinations
         diag["lattice_h"], diag["lattice_n_theta"] = stats.h, stats.n_theta
     else:
-        X, charts, complete, nodes = fk_starts(system, mech, u, w, max_mode, stride=stride, deadline=dl.for_search(),
+        X, charts, complete, nodes = fk_starts(system, u, w, max_mode, stride=stride, deadline=dl.for_search(),
                                                progress=substage(progress, 0.0, 0.6, "branch-and-bound"))
     diag["candidates"] = int(len(X))
     diag["search_complete"] = complete

@@ -1,17 +1,17 @@
 """The forward kinematics' global search: a compiled branch-and-bound over the rods' atlases.
 
-With the inputs fixed every clamp is known.  Each leg's rod is a point of its atlas (a
-:class:`~flexkin.rod.cell_tree.CellTree`: the pinned rods' ``(v, phis)`` atlas, or the clamped
-rods' wrench atlas); a triple of tree nodes, one per leg, survives only if interval arithmetic
-on its boxes, mapped to the world by each leg's clamp, admits
+For mechanisms whose legs are all pinned at the platform (with any leg clamped, FK goes to the
+pose lattice, :mod:`flexkin.solve.fk_lattice`, where these 9-D bounds exclude too little).
+With the inputs fixed every clamp is known.  Each leg's rod is a point of the pinned rods'
+``(v, phis)`` atlas (a :class:`~flexkin.rod.cell_tree.CellTree`); a triple of tree nodes, one
+per leg, survives only if interval arithmetic on its boxes, mapped to the world by each leg's
+clamp, admits
 
 * the platform's three side lengths ``|B_i - B_j| = d_ij`` and its signed area (which rejects
   the mirror-image platform; paper Eq. 17);
 * the force balance ``sum n_i = F`` and the moment balance about ``B_1``
   ``sum (B_i - B_1) x n_i + sum m_i(L) = M_z + (P - B_1) x F`` (Eq. 15, SPEC §2 sign; the last
-  term bounded by ``|b_1| |F|``);
-* for clamped legs, one platform orientation: every clamped tip's angle gives an interval of
-  ``theta_P``, these must meet, and the directions of the tip-to-tip vectors must agree with it.
+  term bounded by ``|b_1| |F|``).
 
 The largest node of a surviving triple is split (depth first, resumable: the stack is kept
 between calls so a time budget can interrupt it) until all three are leaves or resolved in
@@ -33,9 +33,9 @@ from numpy.typing import NDArray
 from ..core.budget import Deadline, Rate
 from ..core.jit import njit
 from ..core.linalg import solve_into
-from ..rod.cell_tree import clamped_tree, pinned_tree
+from ..rod.cell_tree import pinned_tree
 from ..rod.closed_form import SEAM_OFFSET, is_seam
-from ..rod.slots import CHART_SEAM, CHART_WRENCH, NQ
+from ..rod.slots import CHART_SEAM, NQ
 from ..system import System, assemble
 
 __all__ = ["fk_starts"]
@@ -68,62 +68,6 @@ def _dist_ok(dx, dy, hx, hy, d, tol) -> bool:
 
 
 @njit
-def _meet(alo, ahi, blo, bhi) -> bool:
-    """Whether the angle intervals ``[alo, ahi]`` and ``[blo, bhi]`` meet modulo 2 pi."""
-    if ahi - alo >= TWO_PI or bhi - blo >= TWO_PI:
-        return True
-    shift = TWO_PI * math.floor((0.5 * (alo + ahi) - 0.5 * (blo + bhi)) / TWO_PI + 0.5)
-    b0, b1 = blo + shift, bhi + shift
-    return (alo <= b1 + 1e-12 and b0 <= ahi + 1e-12) or (alo <= b1 + TWO_PI and b0 + TWO_PI <= ahi) or \
-        (alo <= b1 - TWO_PI and b0 - TWO_PI <= ahi)
-
-
-@njit
-def _dir_interval(cx, cy, hx, hy):
-    """Interval of the direction of the vectors of a box (centre, half-width); ``ok`` False when
-    the box contains the origin (any direction)."""
-    if abs(cx) <= hx and abs(cy) <= hy:
-        return 0.0, 0.0, False
-    c = math.atan2(cy, cx)
-    lo, hi = 1e300, -1e300
-    for sx in (-1.0, 1.0):
-        for sy in (-1.0, 1.0):
-            a = math.atan2(cy + sy * hy, cx + sx * hx)
-            a = c + (math.pi - ((math.pi - (a - c)) % TWO_PI))
-            lo = min(lo, a)
-            hi = max(hi, a)
-    return lo, hi, True
-
-
-@njit
-def _rot_box(bx, by, lo, hi):
-    """Bounds ``(xlo, xhi, ylo, yhi)`` of ``Rot(theta) b`` over ``theta`` in ``[lo, hi]``."""
-    r = math.hypot(bx, by)
-    if hi - lo >= TWO_PI:
-        return -r, r, -r, r
-    phi = math.atan2(by, bx)
-    # x = r cos(theta + phi), y = r sin(theta + phi): extremes at the ends or at multiples of pi/2
-    a0, a1 = lo + phi, hi + phi
-    xl = min(math.cos(a0), math.cos(a1))
-    xh = max(math.cos(a0), math.cos(a1))
-    yl = min(math.sin(a0), math.sin(a1))
-    yh = max(math.sin(a0), math.sin(a1))
-    k = math.ceil(a0 / (0.5 * math.pi))
-    while k * 0.5 * math.pi <= a1:
-        m = k % 4
-        if m == 0:
-            xh = 1.0
-        elif m == 1:
-            yh = 1.0
-        elif m == 2:
-            xl = -1.0
-        else:
-            yl = -1.0
-        k += 1
-    return r * xl, r * xh, r * yl, r * yh
-
-
-@njit
 def _fit_pose(tx, ty, b, out) -> None:
     """Least-squares rigid pose placing the attach points ``b`` (3, 2) on the tips."""
     bx = (b[0, 0] + b[1, 0] + b[2, 0]) / 3.0
@@ -145,8 +89,7 @@ def _fit_pose(tx, ty, b, out) -> None:
 
 
 @njit
-def bnb_kernel(lo, hi, child, zc, zh, nq, ng, roots, charts, A, al, L, EI, clamped, beta, b, w, L_ref, F_ref,
-               eps_tip, eps_force, eps_ang, reach,
+def bnb_kernel(lo, hi, child, zc, zh, nq, ng, charts, A, al, L, EI, b, w, L_ref, F_ref, eps_tip, eps_force, reach,
                c0, c1, EIs, attach, joint, tip_angle, rod_col, tip_row, cols, u,
                stack, n_stack, budget, starts, n_starts):
     """Process node triples from ``stack[:n_stack]`` until it empties, ``budget`` triples were
@@ -157,22 +100,17 @@ def bnb_kernel(lo, hi, child, zc, zh, nq, ng, roots, charts, A, al, L, EI, clamp
     d02 = math.hypot(b02x, b02y)
     d12 = math.hypot(b[2, 0] - b[1, 0], b[2, 1] - b[1, 1])
     area = b01x * b02y - b01y * b02x
-    ang01 = math.atan2(b01y, b01x)
-    ang02 = math.atan2(b02y, b02x)
-    ang12 = math.atan2(b[2, 1] - b[1, 1], b[2, 0] - b[1, 0])
     tol = 1e-9 * L_ref
     mslack = math.hypot(b[0, 0], b[0, 1]) * math.hypot(w[0], w[1])
     ct = np.empty((3, 2))
     th_ = np.empty((3, 2))
     cf = np.empty((3, 2))
     hf = np.empty((3, 2))
-    tlo = np.empty(3)
-    thi = np.empty(3)
     mlo = np.empty(3)
     mhi = np.empty(3)
     size = np.empty(3)
     nodes = np.empty(3, np.int64)
-    nu = rod_col[2] + (3 if clamped[2] else 2) + 6  # rod coordinates, pose, inputs
+    nu = rod_col[2] + 2 + 6  # rod coordinates (2 per pinned rod), pose, inputs
     x = np.empty(nu)
     r = np.empty(nu - 3)
     J = np.empty((nu - 3, nu))
@@ -207,17 +145,12 @@ def bnb_kernel(lo, hi, child, zc, zh, nq, ng, roots, charts, A, al, L, EI, clamp
             cf[i, 1] = s * (sa * fxc + ca * fyc)
             hf[i, 0] = s * (abs(ca) * fxh + abs(sa) * fyh)
             hf[i, 1] = s * (abs(sa) * fxh + abs(ca) * fyh)
-            tlo[i] = al[i] + lo[nd, 4] - beta[i]
-            thi[i] = al[i] + hi[nd, 4] - beta[i]
             sm = EI[i] / L[i]
             mlo[i] = sm * lo[nd, 5]
             mhi[i] = sm * hi[nd, 5]
             fmag = math.hypot(cf[i, 0], cf[i, 1])
             sz = max(th_[i, 0], th_[i, 1]) / (eps_tip * L_ref)
             sz = max(sz, max(hf[i, 0], hf[i, 1]) / (eps_force * (F_ref + fmag)))
-            if clamped[i]:
-                sz = max(sz, 0.5 * (thi[i] - tlo[i]) / eps_ang)
-                sz = max(sz, 0.5 * (mhi[i] - mlo[i]) / (eps_force * (F_ref * L_ref + abs(0.5 * (mlo[i] + mhi[i])))))
             size[i] = -1.0 if (child[nd, 0] < 0 or sz < 1.0) else sz
         # ---- interval tests ------------------------------------------------------------
         if not _dist_ok(ct[1, 0] - ct[0, 0], ct[1, 1] - ct[0, 1], th_[0, 0] + th_[1, 0], th_[0, 1] + th_[1, 1], d01, tol):
@@ -245,55 +178,6 @@ def bnb_kernel(lo, hi, child, zc, zh, nq, ng, roots, charts, A, al, L, EI, clamp
         slack = mslack + 1e-12 * F_ref * L_ref
         if mtl > w[2] + slack or mth < w[2] - slack:
             continue
-        ok = True
-        have = False
-        plo, phi = 0.0, 0.0
-        for i in range(3):
-            if clamped[i]:
-                if not have:
-                    plo, phi, have = tlo[i], thi[i], True
-                elif not _meet(plo, phi, tlo[i], thi[i]):
-                    ok = False
-                    break
-        if not ok:
-            continue
-        if have and phi - plo < math.pi:
-            # the clamped tips' angles give theta_P; intersect them (modulo 2 pi)
-            for i in range(3):
-                if clamped[i]:
-                    shift = TWO_PI * math.floor((0.5 * (plo + phi) - 0.5 * (tlo[i] + thi[i])) / TWO_PI + 0.5)
-                    plo = max(plo, tlo[i] + shift)
-                    phi = min(phi, thi[i] + shift)
-            if plo > phi + 1e-12:
-                continue
-            # each clamped tip then bounds P = B_i - Rot(theta_P) b_i: intersect those boxes ...
-            pxl, pxh, pyl, pyh = -1e300, 1e300, -1e300, 1e300
-            for i in range(3):
-                if clamped[i]:
-                    rxl, rxh, ryl, ryh = _rot_box(b[i, 0], b[i, 1], plo, phi)
-                    pxl = max(pxl, ct[i, 0] - th_[i, 0] - rxh)
-                    pxh = min(pxh, ct[i, 0] + th_[i, 0] - rxl)
-                    pyl = max(pyl, ct[i, 1] - th_[i, 1] - ryh)
-                    pyh = min(pyh, ct[i, 1] + th_[i, 1] - ryl)
-            if pxl > pxh + tol or pyl > pyh + tol:
-                continue
-            # ... and every tip box must meet its attach point's box P + Rot(theta_P) b_j
-            for j in range(3):
-                rxl, rxh, ryl, ryh = _rot_box(b[j, 0], b[j, 1], plo, phi)
-                if ct[j, 0] + th_[j, 0] < pxl + rxl - tol or ct[j, 0] - th_[j, 0] > pxh + rxh + tol or \
-                        ct[j, 1] + th_[j, 1] < pyl + ryl - tol or ct[j, 1] - th_[j, 1] > pyh + ryh + tol:
-                    ok = False
-                    break
-            if not ok:
-                continue
-            for (i, j, off) in ((0, 1, ang01), (0, 2, ang02), (1, 2, ang12)):
-                dlo, dhi, dok = _dir_interval(ct[j, 0] - ct[i, 0], ct[j, 1] - ct[i, 1], th_[i, 0] + th_[j, 0],
-                                              th_[i, 1] + th_[j, 1])
-                if dok and not _meet(dlo - off, dhi - off, plo, phi):
-                    ok = False
-                    break
-            if not ok:
-                continue
         # ---- split, or test the terminal triple ------------------------------------------
         k = 0
         if size[1] > size[k]:
@@ -312,8 +196,7 @@ def bnb_kernel(lo, hi, child, zc, zh, nq, ng, roots, charts, A, al, L, EI, clamp
             continue
         # one exact Newton step from the centres, pose fitted to the three tips
         for i in range(3):
-            dim = 3 if clamped[i] else 2
-            for c in range(dim):
+            for c in range(2):
                 x[rod_col[i] + c] = zc[nodes[i], c]
             tipx[i], tipy[i] = ct[i, 0], ct[i, 1]
         _fit_pose(tipx, tipy, b, pose)
@@ -332,8 +215,7 @@ def bnb_kernel(lo, hi, child, zc, zh, nq, ng, roots, charts, A, al, L, EI, clamp
         solve_into(M, rhs, dx, work)
         keep = True
         for i in range(3):
-            dim = 3 if clamped[i] else 2
-            for c in range(dim):
+            for c in range(2):
                 v = dx[rod_col[i] + c]
                 if not abs(v) <= (1.0 + reach) * zh[nodes[i], c] + 1e-12:
                     keep = False
@@ -346,23 +228,13 @@ def bnb_kernel(lo, hi, child, zc, zh, nq, ng, roots, charts, A, al, L, EI, clamp
     return n_stack, n_starts, examined
 
 
-def _trees(mech, max_mode: int, stride: int):
-    """The legs' trees concatenated (arrays, root node and chart per leg)."""
-    kinds = []
-    for leg in mech.legs:
-        kinds.append("clamped" if leg.platform_joint.carries_moment else "pinned")
-    order = sorted(set(kinds))
-    trees = {k: (clamped_tree(max_mode) if k == "clamped" else pinned_tree(max_mode, stride)) for k in order}
-    offs, arrs, off = {}, [], 0
-    for k in order:
-        offs[k] = off
-        arrs.append(trees[k])
-        off += len(trees[k].lo)
-    cat = lambda name: np.ascontiguousarray(np.concatenate([getattr(t, name) for t in arrs]))  # noqa: E731
-    child = np.concatenate([np.where(t.child >= 0, t.child + offs[k], -1) for k, t in zip(order, arrs)])
-    roots = np.array([offs[k] for k in kinds], dtype=np.int64)
-    charts = np.array([trees[k].chart for k in kinds], dtype=np.int64)
-    return cat("lo"), cat("hi"), np.ascontiguousarray(child), cat("zc"), cat("zh"), cat("q"), cat("g"), roots, charts
+def _tree(max_mode: int, stride: int):
+    """The pinned rods' tree (arrays), its root node for each leg and each leg's chart."""
+    t = pinned_tree(max_mode, stride)
+    roots = np.zeros(3, dtype=np.int64)
+    charts = np.full(3, t.chart, dtype=np.int64)
+    arrays = (np.ascontiguousarray(a) for a in (t.lo, t.hi, t.child, t.zc, t.zh, t.q, t.g))
+    return (*arrays, roots, charts)
 
 
 #: estimated cost of refining one start (s): the FK Newton of a clamped rod's start, measured
@@ -390,8 +262,8 @@ def _node_shares(child: NDArray[np.int64], roots: NDArray[np.int64]) -> NDArray[
     return share
 
 
-def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: int, *, stride: int = 4,
-              eps_tip: float = 0.01, eps_force: float = 0.05, eps_ang: float = 0.05, reach: float = 1.0,
+def fk_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int, *, stride: int = 4,
+              eps_tip: float = 0.01, eps_force: float = 0.05, reach: float = 1.0,
               max_nodes: int = MAX_NODES, deadline: Deadline | None = None, fallback: int = 20_000,
               progress: Callable[[float, str], None] | None = None
               ) -> tuple[NDArray[np.float64], NDArray[np.int64], bool, int]:
@@ -409,12 +281,13 @@ def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: in
     ``progress(fraction, stage)`` is told the share of the search space resolved (the product
     of the three nodes' shares of their trees, summed over the triples still to examine, is
     what remains)."""
-    lo, hi, child, zc, zh, nq, ng, roots, charts = _trees(mech, max_mode, stride)
+    if np.any(system.clamped):
+        raise ValueError("fk_starts searches mechanisms with every leg pinned at the platform; "
+                         "with a clamped leg use the pose lattice (flexkin.solve.fk_lattice)")
+    lo, hi, child, zc, zh, nq, ng, roots, charts = _tree(max_mode, stride)
     u = np.asarray(inputs, dtype=float)
     A, al, L = system.clamps(u[None])
     A, al, L = np.ascontiguousarray(A[0]), np.ascontiguousarray(al[0]), np.ascontiguousarray(L[0])
-    clamped = system.clamped.copy()
-    beta = np.asarray(system.tip_angle, dtype=float)
     cols = system.layout.columns("inputs")
     stack = np.empty((200_000, 3), np.int64)
     stack[0] = roots
@@ -430,10 +303,8 @@ def fk_starts(system: System, mech, inputs: NDArray, load: NDArray, max_mode: in
         if dl.expired(REFINE_COST * n_starts):
             break
         t = time.perf_counter()
-        n_stack, n_starts, ex = bnb_kernel(lo, hi, child, zc, zh, nq, ng, roots, charts, A, al, L, system.EI,
-                                           clamped, beta,
-                                           system.attach, w, system.L_ref, system.F_ref, eps_tip, eps_force, eps_ang,
-                                           reach, *system.args()[:8], cols, u, stack, n_stack,
+        n_stack, n_starts, ex = bnb_kernel(lo, hi, child, zc, zh, nq, ng, charts, A, al, L, system.EI,
+                                           system.attach, w, system.L_ref, system.F_ref, eps_tip, eps_force, reach, *system.args()[:8], cols, u, stack, n_stack,
                                            min(rate.units_for(dl.slice_seconds(), 100, SLICE), max_nodes - examined),
                                            starts, n_starts)
         rate.add(ex, time.perf_counter() - t)
@@ -477,8 +348,6 @@ def _decode(system: System, X: NDArray, charts: NDArray) -> tuple[NDArray, NDArr
     leg_charts = np.asarray(charts, dtype=np.int64)
     ch = np.broadcast_to(leg_charts, (len(X), 3)).copy()
     for i in range(3):
-        if leg_charts[i] == CHART_WRENCH:
-            continue
         c = system.layout.rod[i].start + 1
         seam = is_seam(X[:, c])
         X[seam, c] -= SEAM_OFFSET
