@@ -35,6 +35,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from .core.geometry2d import wrap_to_pi
 from .io.html_report import markdown_to_html
 
 __all__ = ["reproduce", "ReproduceResult", "PAPER_TABLE1", "PAPER_TABLE2", "fmt_length"]
@@ -115,7 +116,7 @@ def _rod_check(n: int = 24) -> dict[str, float]:
         sol = solve_ivp(rhs, (0, 1), [0, 0, 0, m0], rtol=1e-12, atol=1e-13, method="DOP853")
         y = sol.y[:, -1]
         err_p = max(err_p, float(np.hypot(y[0] - t.x[i], y[1] - t.y[i])))
-        err_t = max(err_t, abs(float(np.angle(np.exp(1j * (y[2] - t.theta[i]))))), abs(float(y[3])))
+        err_t = max(err_t, abs(wrap_to_pi(y[2] - t.theta[i])), abs(float(y[3])))
     return {"rods": n, "max_tip_position_error_per_L": err_p, "max_tip_angle_or_moment_error": err_t}
 
 

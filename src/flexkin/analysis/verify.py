@@ -62,6 +62,7 @@ from numpy.typing import NDArray
 
 from ..core.dop853 import STAGES, advance, error_norm, stage_state, step_factor
 from ..core.geometry2d import rotate, wrap_to_pi
+from ..core.geometry2d_kernels import wrap_angle
 from ..core.jit import njit
 from ..rod.closed_form import SEAM_OFFSET, is_seam, standard_chart
 from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, profile
@@ -203,7 +204,7 @@ def _shoot_rods(nodes, offsets, force, rtol, atol, hmax, max_steps, gap, counts,
             n_ms += nm
             e = nodes[k + 1]
             d = y[2] - e[2]
-            gap[r, 1] = max(gap[r, 1], abs(math.pi - ((math.pi - d) % (2.0 * math.pi))))
+            gap[r, 1] = max(gap[r, 1], abs(wrap_angle(d)))
             gap[r, 2] = max(gap[r, 2], abs(y[3] - e[3]))
         e = nodes[offsets[r + 1] - 1]
         gap[r, 0] = math.hypot(y[0] - e[0], y[1] - e[1])

@@ -12,7 +12,9 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["rot2", "rotate", "platform_points", "fit_pose", "wrap_to_pi", "cross2"]
+__all__ = ["rot2", "rotate", "platform_points", "fit_pose", "wrap_angle", "wrap_to_pi", "cross2"]
+
+TWO_PI = 2.0 * math.pi
 
 
 def rot2(angle: ArrayLike) -> NDArray[np.float64]:
@@ -66,10 +68,20 @@ def fit_pose(attach: ArrayLike, points: ArrayLike) -> NDArray[np.float64]:
     return np.concatenate([P, th[..., None]], axis=-1)
 
 
+def wrap_angle(a):
+    """``a`` (rad) wrapped into ``(-pi, pi]``: flexkin's one angle-wrap convention.
+
+    ``pi`` stays ``pi`` and ``-pi`` becomes ``pi``; every other angle goes to the representative
+    of its class modulo ``2 pi`` strictly above ``-pi``.  The body is plain arithmetic, so it
+    serves floats, numpy arrays and compiled kernels alike (the kernels compile it with
+    ``flexkin.core.jit.njit``: see :mod:`flexkin.core.geometry2d_kernels`).
+    """
+    return math.pi - ((math.pi - a) % TWO_PI)
+
+
 def wrap_to_pi(angle: ArrayLike) -> NDArray[np.float64] | float:
-    """Angles wrapped into ``(-pi, pi]``."""
-    a = np.asarray(angle, dtype=float)
-    out = np.pi - np.mod(np.pi - a, 2.0 * np.pi)
+    """Angles (array or scalar) wrapped into ``(-pi, pi]`` (:func:`wrap_angle`)."""
+    out = wrap_angle(np.asarray(angle, dtype=float))
     return float(out) if out.ndim == 0 else out
 
 

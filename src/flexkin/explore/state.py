@@ -31,6 +31,8 @@ from typing import Any, Sequence
 import numpy as np
 
 import flexkin
+from flexkin.core.geometry2d import wrap_to_pi
+from flexkin.core.validation import check_max_mode
 from flexkin.results import fill_margins
 
 __all__ = [
@@ -116,19 +118,15 @@ def _fmt_where(mech, mode: str, where: Sequence[float]) -> str:
 # ---------------------------------------------------------------------------------------------
 # matching solutions across updates
 # ---------------------------------------------------------------------------------------------
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
 def solution_distance(a, b, mech) -> float:
     """Dimensionless distance between two equilibria of ``mech``: the largest of the pose
     difference (lengths over the length scale, angle in rad), the input differences (m over the
     length scale, rad) and each rod's tip-force (over EI/L^2) and base-moment (over EI/L)
     differences.  About 1e-9 for the same equilibrium computed twice."""
     L = float(mech.length_scale)
-    d = [abs(a.pose[0] - b.pose[0]) / L, abs(a.pose[1] - b.pose[1]) / L, abs(_wrap(a.pose[2] - b.pose[2]))]
+    d = [abs(a.pose[0] - b.pose[0]) / L, abs(a.pose[1] - b.pose[1]) / L, abs(wrap_to_pi(a.pose[2] - b.pose[2]))]
     for ua, ub, leg in zip(a.inputs, b.inputs, mech.legs):
-        d.append(abs(_wrap(ua - ub)) if leg.actuation == "revolute" else abs(ua - ub) / L)
+        d.append(abs(wrap_to_pi(ua - ub)) if leg.actuation == "revolute" else abs(ua - ub) / L)
     for ra, rb in zip(a.rods, b.rods):
         f = ra.EI / ra.length**2
         d.append(math.hypot(ra.tip_force[0] - rb.tip_force[0], ra.tip_force[1] - rb.tip_force[1]) / f)

@@ -18,6 +18,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.geometry2d_kernels import wrap_angle
 from ..core.jit import njit
 from ..core.linalg import solve_into
 from .slots import NQ, TH, X, Y
@@ -27,11 +28,6 @@ from .wrench_atlas import get_wrench_atlas, in_wrench_scope
 __all__ = ["clamped_rod_roots", "bracket_cells", "wrench_newton", "distinct_shapes"]
 
 TWO_PI = 2.0 * math.pi
-
-
-@njit
-def _wrap(a: float) -> float:
-    return math.pi - ((math.pi - a) % TWO_PI)
 
 
 @njit
@@ -72,7 +68,7 @@ def bracket_cells(x, y, th, valid, xt, yt, tht, pad) -> np.ndarray:
                     elif q == 1:
                         t = yt
                     else:
-                        t = ref + _wrap(tht - ref)  # the target's representative nearest the cell
+                        t = ref + wrap_angle(tht - ref)  # the target's representative nearest the cell
                         if not (lo - ext <= t <= hi + ext):
                             t2 = t + TWO_PI if t < lo else t - TWO_PI
                             t = t2
@@ -100,7 +96,7 @@ def wrench_newton(Z, xt, yt, tht, tol, max_iter, res) -> None:
     for k in range(Z.shape[0]):
         z = Z[k]
         wrench_eval(z[0], z[1], z[2], q, g)
-        r0, r1, r2 = q[X] - xt, q[Y] - yt, _wrap(q[TH] - tht)
+        r0, r1, r2 = q[X] - xt, q[Y] - yt, wrap_angle(q[TH] - tht)
         nrm = max(abs(r0), abs(r1), abs(r2))
         for _ in range(max_iter):
             if not nrm > tol:
@@ -117,7 +113,7 @@ def wrench_newton(Z, xt, yt, tht, tol, max_iter, res) -> None:
                 for c in range(3):
                     zt[c] = z[c] + alpha * d[c]
                 wrench_eval(zt[0], zt[1], zt[2], q, g)
-                n0, n1, n2 = q[X] - xt, q[Y] - yt, _wrap(q[TH] - tht)
+                n0, n1, n2 = q[X] - xt, q[Y] - yt, wrap_angle(q[TH] - tht)
                 nt = max(abs(n0), abs(n1), abs(n2))
                 if nt < nrm:
                     z[0], z[1], z[2] = zt[0], zt[1], zt[2]

@@ -32,6 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..analysis.jacobian import kinematic_jacobians, singularity_measures, system_blocks
 from ..analysis.stability import StabilityArrays, mechanism_stability
 from ..core.budget import Deadline, Rate
+from ..core.geometry2d import wrap_to_pi
 from ..core.validation import as_triple, check_count, check_max_mode
 from ..io.progress import Progress, substage
 from ..results import Result, Solution, finite_or_none
@@ -509,7 +510,7 @@ def _unwrap(u: NDArray, ref: NDArray, system: System) -> NDArray:
     """Angular inputs shifted by multiples of 2 pi to be closest to ``ref``."""
     out = np.array(u, dtype=float)
     rev = system.angular
-    out[rev] = ref[rev] + (out[rev] - ref[rev] + np.pi) % (2 * np.pi) - np.pi
+    out[rev] = ref[rev] + wrap_to_pi(out[rev] - ref[rev])
     return out
 
 
