@@ -22,6 +22,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .core import cli_args
+
 __all__ = ["main"]
 
 EXIT_USAGE = 2
@@ -41,52 +43,17 @@ class _Parser(argparse.ArgumentParser):
         raise CLIError(f"{self.prog}: {' '.join(message.split())} (see '{self.prog} --help')")
 
 
-def _finite(name: str):
-    def conv(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name}: expected a number, got {text!r}") from None
-        if not math.isfinite(v):
-            raise argparse.ArgumentTypeError(f"{name}: expected a finite number, got {text!r}")
-        return v
-    conv.__name__ = name
-    return conv
-
-
-def _positive(name: str):
-    base = _finite(name)
-
-    def conv(text: str) -> float:
-        v = base(text)
-        if v <= 0:
-            raise argparse.ArgumentTypeError(f"{name}: must be > 0, got {text!r}")
-        return v
-    conv.__name__ = name
-    return conv
-
-
-def _mode(text: str) -> int:
-    try:
-        q = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--max-mode: expected an integer, got {text!r}") from None
-    if not 1 <= q <= 6:
-        raise argparse.ArgumentTypeError(f"--max-mode: must be between 1 and 6, got {q}")
-    return q
-
-
 def _add_time_budget(k) -> None:
-    k.add_argument("--time-budget", type=_positive("--time-budget"), metavar="SECONDS",
+    k.add_argument("--time-budget", type=cli_args.positive, metavar="SECONDS",
                    help="seconds for the whole computation (search, refinement, stability, Jacobians, verification; "
                         "loading the compiled kernels at start-up not counted); when they run out the result holds "
                         "what was finished and says complete = false (default: no limit)")
 
 
 def _add_common_kinematics(k, name: str) -> None:
-    k.add_argument("--load", nargs=3, type=_finite("--load"), metavar=("FX", "FY", "MZ"),
+    k.add_argument("--load", nargs=3, type=cli_args.finite, metavar=("FX", "FY", "MZ"),
                    help="load wrench at P [N, N, N m] (default: the file's [load] or zero)")
-    k.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode of any rod (default 2)")
+    k.add_argument("--max-mode", type=cli_args.max_mode, default=2, help="largest d-mode of any rod (default 2)")
     k.add_argument("--quiet", "-q", action="store_true", help="no progress display on stderr")
 
 
@@ -100,20 +67,20 @@ def _build_parser() -> argparse.ArgumentParser:
     s.add_argument("--plot", metavar="FILE", help="write a drawing of the mechanism")
 
     r = sub.add_parser("rod", help="every equilibrium of one rod with a pinned or clamped tip (paper Fig. 19)")
-    r.add_argument("--length", type=_positive("--length"), help="rod length L [m]")
-    r.add_argument("--EI", type=_positive("--EI"), help="bending stiffness [N m^2]")
-    r.add_argument("--E", type=_positive("--E"), help="Young's modulus [Pa] (with --radius)")
-    r.add_argument("--radius", type=_positive("--radius"), help="radius of the circular section [m]")
-    r.add_argument("--tip", nargs=2, type=_finite("--tip"), metavar=("X", "Y"), help="tip point [m]")
-    r.add_argument("--tip-angle", type=_finite("--tip-angle"), metavar="DEG",
+    r.add_argument("--length", type=cli_args.positive, help="rod length L [m]")
+    r.add_argument("--EI", type=cli_args.positive, help="bending stiffness [N m^2]")
+    r.add_argument("--E", type=cli_args.positive, help="Young's modulus [Pa] (with --radius)")
+    r.add_argument("--radius", type=cli_args.positive, help="radius of the circular section [m]")
+    r.add_argument("--tip", nargs=2, type=cli_args.finite, metavar=("X", "Y"), help="tip point [m]")
+    r.add_argument("--tip-angle", type=cli_args.finite, metavar="DEG",
                    help="clamp the tip too, with this tangent angle [deg, world frame] (default: pinned tip)")
-    r.add_argument("--clamp-angle", type=_finite("--clamp-angle"), default=0.0, metavar="DEG",
+    r.add_argument("--clamp-angle", type=cli_args.finite, default=0.0, metavar="DEG",
                    help="clamp tangent angle [deg] (default 0)")
-    r.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode (default 2)")
+    r.add_argument("--max-mode", type=cli_args.max_mode, default=2, help="largest d-mode (default 2)")
     r.add_argument("--sweep", action="store_true",
                    help="sweep the tip abscissa at fixed height (defaults: the paper's Fig. 19 set-up)")
-    r.add_argument("--tip-y", type=_finite("--tip-y"), help="sweep: tip height [m] (default -0.2125)")
-    r.add_argument("--x-range", nargs=2, type=_finite("--x-range"), metavar=("X0", "X1"),
+    r.add_argument("--tip-y", type=cli_args.finite, help="sweep: tip height [m] (default -0.2125)")
+    r.add_argument("--x-range", nargs=2, type=cli_args.finite, metavar=("X0", "X1"),
                    help="sweep: tip abscissa range [m] (default 0.86 0.51)")
     r.add_argument("--points", type=int, default=36, help="sweep: number of abscissae (default 36)")
     r.add_argument("--json", action="store_true", help="print the JSON result")
@@ -124,10 +91,10 @@ def _build_parser() -> argparse.ArgumentParser:
         k = sub.add_parser(name, help=helptext)
         k.add_argument("mechanism", help="mechanism file (TOML, docs/mechanism_file.md)")
         if name == "ik":
-            k.add_argument("--pose", nargs=3, type=_finite("--pose"), metavar=("X", "Y", "THETA"), required=True,
+            k.add_argument("--pose", nargs=3, type=cli_args.finite, metavar=("X", "Y", "THETA"), required=True,
                            help="platform pose: m, m, deg")
         else:
-            k.add_argument("--inputs", nargs=3, type=_finite("--inputs"), metavar=("U1", "U2", "U3"), required=True,
+            k.add_argument("--inputs", nargs=3, type=cli_args.finite, metavar=("U1", "U2", "U3"), required=True,
                            help="actuator inputs: m for prismatic and length legs, deg for revolute legs")
         _add_time_budget(k)
         _add_common_kinematics(k, name)
@@ -150,7 +117,7 @@ def _build_parser() -> argparse.ArgumentParser:
         k.add_argument("--model", choices=("kirchhoff", "cosserat"), default="kirchhoff",
                        help="kirchhoff (default), or cosserat: then refine every listed solution with extension, "
                             "shear and self-weight (needs E and radius; [rod] G or poisson, density)")
-        k.add_argument("--gravity", nargs=2, type=_finite("--gravity"), metavar=("GX", "GY"),
+        k.add_argument("--gravity", nargs=2, type=cli_args.finite, metavar=("GX", "GY"),
                        help="with --model cosserat: gravity in the plane [m/s^2] (default: the file's "
                             "[environment] gravity, else none)")
         if name == "ik":
@@ -160,11 +127,11 @@ def _build_parser() -> argparse.ArgumentParser:
                                        "(extension, shear, self-weight)")
     rf.add_argument("mechanism", help="mechanism file (TOML, docs/mechanism_file.md); needs E and radius")
     g = rf.add_mutually_exclusive_group(required=True)
-    g.add_argument("--pose", nargs=3, type=_finite("--pose"), metavar=("X", "Y", "THETA"),
+    g.add_argument("--pose", nargs=3, type=cli_args.finite, metavar=("X", "Y", "THETA"),
                    help="platform pose (IK): m, m, deg")
-    g.add_argument("--inputs", nargs=3, type=_finite("--inputs"), metavar=("U1", "U2", "U3"),
+    g.add_argument("--inputs", nargs=3, type=cli_args.finite, metavar=("U1", "U2", "U3"),
                    help="actuator inputs (FK): m for prismatic and length legs, deg for revolute legs")
-    rf.add_argument("--gravity", nargs=2, type=_finite("--gravity"), metavar=("GX", "GY"),
+    rf.add_argument("--gravity", nargs=2, type=cli_args.finite, metavar=("GX", "GY"),
                     help="gravity in the plane [m/s^2] (default: the file's [environment] gravity, else none)")
     _add_common_kinematics(rf, "refine")
     rf.add_argument("--stable-only", action="store_true", help="refine only the stable Kirchhoff equilibria")
@@ -174,17 +141,17 @@ def _build_parser() -> argparse.ArgumentParser:
 
     pa = sub.add_parser("path", help="follow one IK solution along a straight path of poses (singularities, stability)")
     pa.add_argument("mechanism", help="mechanism file (TOML, docs/mechanism_file.md)")
-    pa.add_argument("--from", dest="start", nargs=3, type=_finite("--from"), metavar=("X", "Y", "THETA"), required=True,
+    pa.add_argument("--from", dest="start", nargs=3, type=cli_args.finite, metavar=("X", "Y", "THETA"), required=True,
                     help="start pose: m, m, deg")
-    pa.add_argument("--to", dest="end", nargs=3, type=_finite("--to"), metavar=("X", "Y", "THETA"), required=True,
+    pa.add_argument("--to", dest="end", nargs=3, type=cli_args.finite, metavar=("X", "Y", "THETA"), required=True,
                     help="end pose: m, m, deg")
-    pa.add_argument("--steps", type=_count("--steps"), default=50, help="number of path intervals (default 50)")
-    pa.add_argument("--solution", type=_count("--solution", 1), default=None,
+    pa.add_argument("--steps", type=cli_args.count, default=50, help="number of path intervals (default 50)")
+    pa.add_argument("--solution", type=cli_args.count, default=None,
                     help="id of the IK solution at the start pose to follow, as numbered by 'flexkin ik' "
                          "(the '#' column and the JSON 'id', also after --stable-only; default: the first stable one)")
-    pa.add_argument("--load", nargs=3, type=_finite("--load"), metavar=("FX", "FY", "MZ"),
+    pa.add_argument("--load", nargs=3, type=cli_args.finite, metavar=("FX", "FY", "MZ"),
                     help="load wrench at P [N, N, N m] (default: the file's [load] or zero)")
-    pa.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode for the start IK (default 2)")
+    pa.add_argument("--max-mode", type=cli_args.max_mode, default=2, help="largest d-mode for the start IK (default 2)")
     pa.add_argument("--json", action="store_true",
                     help="print the JSON result (per sample: pose, inputs, modes, stability, Jacobians, strain, "
                          "feasibility)")
@@ -196,16 +163,16 @@ def _build_parser() -> argparse.ArgumentParser:
 
     wk = sub.add_parser("workspace", help="constant-orientation workspace by wave propagation (paper Fig. 17)")
     wk.add_argument("mechanism", help="mechanism file (TOML, docs/mechanism_file.md)")
-    wk.add_argument("--theta", type=_finite("--theta"), action="append", required=True, metavar="DEG",
+    wk.add_argument("--theta", type=cli_args.finite, action="append", required=True, metavar="DEG",
                     help="platform orientation [deg]; repeat for several orientations (computed in parallel)")
-    wk.add_argument("--seed", nargs=2, type=_finite("--seed"), metavar=("X", "Y"), default=(0.0, 0.0),
+    wk.add_argument("--seed", nargs=2, type=cli_args.finite, metavar=("X", "Y"), default=(0.0, 0.0),
                     help="seed position [m] (default 0 0)")
-    wk.add_argument("--step", type=_positive("--step"), help="grid step [m] (default: 1/100 of the bounds)")
-    wk.add_argument("--bounds", nargs=4, type=_finite("--bounds"), metavar=("X0", "X1", "Y0", "Y1"),
+    wk.add_argument("--step", type=cli_args.positive, help="grid step [m] (default: 1/100 of the bounds)")
+    wk.add_argument("--bounds", nargs=4, type=cli_args.finite, metavar=("X0", "X1", "Y0", "Y1"),
                     help="grid box [m] (default: the legs' origins grown by a quarter rod length)")
-    wk.add_argument("--load", nargs=3, type=_finite("--load"), metavar=("FX", "FY", "MZ"),
+    wk.add_argument("--load", nargs=3, type=cli_args.finite, metavar=("FX", "FY", "MZ"),
                     help="load wrench at P [N, N, N m] (default: the file's [load] or zero)")
-    wk.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode of the seed IK (default 2)")
+    wk.add_argument("--max-mode", type=cli_args.max_mode, default=2, help="largest d-mode of the seed IK (default 2)")
     wk.add_argument("--first-aspect", action="store_true",
                     help="map only the aspect of the first stable seed solution (default: every stable one)")
     wk.add_argument("--constrained", action="store_true",
@@ -216,7 +183,7 @@ def _build_parser() -> argparse.ArgumentParser:
                     help="also check rod-rod and rod-platform collisions at every cell (slower)")
     wk.add_argument("--color", default="modes", choices=["modes", "margin", "cond", "input1", "input2", "input3"],
                     help="colour the region by d-mode combination (default) or a quantity")
-    wk.add_argument("--jobs", type=_count("--jobs"), default=None,
+    wk.add_argument("--jobs", type=cli_args.count, default=None,
                     help="parallel processes for several orientations (default: the number of cores)")
     wk.add_argument("--save", metavar="FILE", help="save the maps (.npz; one file per orientation, suffixed)")
     wk.add_argument("--json", action="store_true", help="print a JSON summary")
@@ -370,19 +337,6 @@ def _cmd_study(a) -> int:
     from .study.cli import run_study_command
 
     return run_study_command(a)
-
-
-def _count(name: str, lo: int = 1):
-    def conv(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name}: expected an integer, got {text!r}") from None
-        if not lo <= v <= 100000:
-            raise argparse.ArgumentTypeError(f"{name}: must be between {lo} and 100000, got {v}")
-        return v
-
-    return conv
 
 
 def _cmd_path(a) -> int:

@@ -20,42 +20,11 @@ import math
 import sys
 from typing import Any, Sequence
 
+from ..core import cli_args
+
 __all__ = ["add_explore_parser", "run_explore_command", "main"]
 
 EXIT_USAGE = 2
-
-
-def _finite(name: str):
-    def conv(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name}: expected a number, got {text!r}") from None
-        if not math.isfinite(v):
-            raise argparse.ArgumentTypeError(f"{name}: must be finite, got {text!r}")
-        return v
-
-    return conv
-
-
-def _port(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--port: expected an integer, got {text!r}") from None
-    if not 0 <= v <= 65535:
-        raise argparse.ArgumentTypeError(f"--port: must be between 0 and 65535, got {v}")
-    return v
-
-
-def _mode(text: str) -> int:
-    try:
-        q = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--max-mode: expected an integer, got {text!r}") from None
-    if not 1 <= q <= 6:
-        raise argparse.ArgumentTypeError(f"--max-mode: must be between 1 and 6, got {q}")
-    return q
 
 
 def add_explore_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -67,14 +36,14 @@ def add_explore_parser(subparsers: Any) -> argparse.ArgumentParser:
                     "selected one is tracked continuously with its events (d-mode change, stability, "
                     "singularities, feasibility). Stops on Ctrl-C or when the last tab is closed.")
     p.add_argument("mechanism", metavar="MECH.toml", help="mechanism file (TOML)")
-    p.add_argument("--port", type=_port, default=None, metavar="P",
+    p.add_argument("--port", type=cli_args.integer_in(0, 65535), default=None, metavar="P",
                    help="port on localhost (default 5006, or a free port if 5006 is taken; 0: any free port)")
     p.add_argument("--no-browser", action="store_true", help="do not open a browser; just print the address")
-    p.add_argument("--pose", nargs=3, type=_finite("--pose"), metavar=("X", "Y", "THETA"),
+    p.add_argument("--pose", nargs=3, type=cli_args.finite, metavar=("X", "Y", "THETA"),
                    help="start pose [m m deg] (default: the centroid of the legs' origins, 0 deg)")
-    p.add_argument("--load", nargs=3, type=_finite("--load"), metavar=("FX", "FY", "MZ"),
+    p.add_argument("--load", nargs=3, type=cli_args.finite, metavar=("FX", "FY", "MZ"),
                    help="load wrench on the platform at P [N N N*m] (default: the file's)")
-    p.add_argument("--max-mode", type=_mode, default=2, help="largest d-mode of any rod (default 2)")
+    p.add_argument("--max-mode", type=cli_args.max_mode, default=2, help="largest d-mode of any rod (default 2)")
     return p
 
 

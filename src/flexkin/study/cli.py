@@ -23,9 +23,10 @@ line on stderr for each problem:
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from typing import Any, Sequence
+
+from ..core import cli_args
 
 __all__ = ["add_study_parser", "run_study_command", "main"]
 
@@ -33,26 +34,6 @@ EXIT_USAGE = 2
 EXIT_FAILED_ROWS = 1
 EXIT_CLUSTER = 3
 EXIT_INTERRUPTED = 130
-
-
-def _workers(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if not 1 <= v <= 4096:
-        raise argparse.ArgumentTypeError(f"must be between 1 and 4096, got {v}")
-    return v
-
-
-def _seconds(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
-    if not math.isfinite(v) or v <= 0:
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return v
 
 
 def add_study_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -65,14 +46,14 @@ def add_study_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("study", metavar="STUDY.toml", help="study file (TOML)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory (created; re-use it to resume)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--workers", type=_workers, metavar="N",
+    g.add_argument("--workers", type=cli_args.integer_in(1, 4096), metavar="N",
                    help="worker processes of the local Dask cluster (default: the number of cores)")
     g.add_argument("--scheduler", metavar="ADDRESS",
                    help="address of a running Dask scheduler (tcp://HOST:PORT), or 'synchronous' to compute in "
                         "this process without Dask")
-    p.add_argument("--timeout", type=_seconds, default=10.0, metavar="S",
+    p.add_argument("--timeout", type=cli_args.positive, default=10.0, metavar="S",
                    help="seconds to wait for the scheduler (default 10)")
-    p.add_argument("--worker-timeout", type=_seconds, default=60.0, metavar="S",
+    p.add_argument("--worker-timeout", type=cli_args.positive, default=60.0, metavar="S",
                    help="seconds to wait while no Dask worker is connected before giving up (default 60)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     p.add_argument("--no-figures", action="store_true", help="write the table only")
