@@ -193,6 +193,13 @@ def test_no_new_warning_for_the_bundled_designs():
     (["study", "s.toml", "--out", "o", "--workers", "0"], "--workers"),
     (["explore"], "MECH.toml"),
     (["explore", RFR, "--port", "x"], "--port"),
+    (["explore", RFR, "--max-mode", "7"], "--max-mode"),
+    (["ik", RFR, "--pose", "0", "0", "0", "--load", "x", "0", "0"], "--load"),
+    (["ik", RFR, "--pose", "0", "0", "0", "--max-mode", "0"], "--max-mode"),
+    (["path", RFR, "--from", "0", "0", "0", "--to", "0", "0", "1", "--steps", "0"], "--steps"),
+    (["study", "s.toml", "--out", "o", "--timeout", "-1"], "--timeout"),
+    (["calibrate", RFR, "--data", "d.csv", "--fit", "rod.E", "--f-scale", "nan"], "--f-scale"),
+    (["calibrate", RFR, "--data", "d.csv", "--fit", "rod.E", "--max-mode", "9"], "--max-mode"),
     (["frobnicate"], "invalid choice"),
 ])
 def test_argument_errors_are_one_line(capsys, args, fragment):
