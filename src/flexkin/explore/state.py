@@ -250,7 +250,7 @@ class ExplorerState:
     def __init__(self, mech, pose: Sequence[float] | None = None, *, load: Sequence[float] | None = None,
                  max_mode: int = 2) -> None:
         self.mech = mech
-        self.max_mode = int(max_mode)
+        self.max_mode = check_max_mode(max_mode)
         p = default_pose(mech) if pose is None else pose
         self.pose = np.array([float(v) for v in p])
         if self.pose.shape != (3,) or not np.all(np.isfinite(self.pose)):

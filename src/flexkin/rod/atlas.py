@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.cache import cached_arrays
+from ..core.validation import check_max_mode
 from .closed_form import HALF_PI, tip_chart
 
 __all__ = ["Atlas", "get_atlas", "KPRIME_MIN", "in_scope"]
@@ -138,8 +139,7 @@ def _source_key() -> str:
 @lru_cache(maxsize=8)
 def get_atlas(max_mode: int) -> Atlas:
     """Atlas of all rods with d-mode <= ``max_mode`` (cached per process and on disk)."""
-    if max_mode < 1:
-        raise ValueError(f"max_mode must be >= 1, got {max_mode}")
+    max_mode = check_max_mode(max_mode)
     v = _v_nodes()
     phis = _phis_nodes(max_mode)
 

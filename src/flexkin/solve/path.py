@@ -273,13 +273,14 @@ def follow_path(mech, start: ArrayLike, end: ArrayLike, steps: int = 50, load: A
     a = as_triple(start, "start pose (x, y, theta)")
     b = as_triple(end, "end pose (x, y, theta)")
     steps = check_count(steps, "steps")
+    max_mode = check_max_mode(max_mode)
     w = as_load(mech, load)
     system = System.from_mechanism(mech)
     base = dict(mechanism=mech, start=tuple(map(float, a)), end=tuple(map(float, b)), load=tuple(map(float, w)))
     if isinstance(solution, Solution):
         sol = solution
     else:
-        res = ik(mech, a, load=w, max_mode=check_max_mode(max_mode), time_budget=dl if dl.limited else None,
+        res = ik(mech, a, load=w, max_mode=max_mode, time_budget=dl if dl.limited else None,
                  progress=substage(progress, 0.0, 0.1, "IK at the start pose"))
         if dl.hit:  # the solution to follow is not known for sure
             return PathResult(complete=False, message=dl.message("in the IK at the start pose"),

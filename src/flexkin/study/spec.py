@@ -27,7 +27,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..core.validation import KeyPathError, check_table_keys, file_number, short_text, suggest_key, type_name
+from ..core.validation import (MAX_MODE_LIMIT, KeyPathError, check_max_mode, check_table_keys, file_number, short_text,
+                               suggest_key, type_name)
 from . import grid as _grid
 from .evaluate import METRICS, ROW_VERSION, DesignTask
 
@@ -240,9 +241,11 @@ def _workspace(value: Any) -> dict[str, Any]:
         out["seed"] = [file_number(x, f"workspace.seed[{j + 1}]") for j, x in enumerate(sd)]
     if "max_mode" in value:
         q = value["max_mode"]
-        if isinstance(q, bool) or not isinstance(q, int) or not 1 <= q <= 6:
-            raise KeyPathError("workspace.max_mode", f"expected an integer from 1 to 6, got {_show(q)}")
-        out["max_mode"] = q
+        try:
+            out["max_mode"] = check_max_mode(q)
+        except ValueError:
+            raise KeyPathError("workspace.max_mode",
+                               f"expected an integer from 1 to {MAX_MODE_LIMIT}, got {_show(q)}") from None
     for key in ("all_aspects", "constrained", "collisions", "seed_search"):
         if key in value:
             flag = value[key]
