@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 import flexkin
-from flexkin.solve.fk import refine_fk
-from flexkin.solve.ik import refine_ik
+from flexkin.solve.ik import refine
 from flexkin.system import System
 
 CASES = [("unit_3pfr.toml", (0.05, 0.02, 0.35)), ("unit_3rfr.toml", (0.05, -0.03, 0.2)),
@@ -39,7 +38,7 @@ def test_jacobians_match_central_differences_of_the_solvers(example, pose, examp
         def resolve(fixed, cols, delta):
             X = x0.copy()
             X[cols] += delta
-            out = (refine_ik if fixed == "pose" else refine_fk)(m, mech, X[None], ch, w, 6)
+            out = refine(m, mech, X[None], ch, w, 6, fixed)
             return out[0]
 
         def central(h):

@@ -21,13 +21,12 @@ from numpy.typing import ArrayLike, NDArray
 from ..core.budget import Deadline
 from ..core.validation import as_triple, check_max_mode
 from ..io.progress import Progress, substage
-from ..results import FKDiagnostics, KinematicsResult, Solution
+from ..results import FKDiagnostics, KinematicsResult
 from ..system import System
-from .finish import SCOPE_MESSAGE, finish_solutions
+from .finish import SCOPE_MESSAGE
 from .fk_lattice import lattice_starts
 from .fk_search import fk_starts
-from .ik import RESIDUAL_TOL, as_load
-from .sliced import newton_within
+from .ik import as_load, refine
 
 __all__ = ["fk"]
 
@@ -101,7 +100,7 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     diag["nodes"] = int(nodes)
     if progress is not None:
         progress(0.6, f"Newton on {len(X)} candidates")
-    sols = refine_fk(system, mech, X, charts, w, max_mode, diag, deadline=dl,
+    sols = refine(system, mech, X, charts, w, max_mode, "inputs", diag, deadline=dl,
                      progress=substage(progress, 0.7, 1.0, "equilibria"), margin=margin)
     if dl.limited and not complete and "lattice_h" in diag:
         dl.hit = True  # the lattice search stops only at the deadline
@@ -120,20 +119,6 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     res = KinematicsResult(tuple(sols), complete, msg, time.perf_counter() - t0, FKDiagnostics(**diag), "fk", mech,
                            given, wl, max_mode)
     return res.select(stable_only=True) if stable_only else res
-
-
-def refine_fk(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
-              diag: dict[str, Any] | None = None, deadline: Deadline | None = None,
-              progress: Progress | None = None, margin: bool = False) -> list[Solution]:
-    """Newton-refine FK candidates ``X`` (inputs held) and build the solutions (within the
-    ``deadline``, if given: what it leaves no time for is dropped and the deadline is hit;
-    ``margin``: with their stability margins)."""
-    res = newton_within(system, X, charts, load, "inputs", deadline)
-    good = res.residual <= RESIDUAL_TOL
-    if diag is not None:
-        diag["converged"] = int(np.count_nonzero(good))
-    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
-                            "inputs", deadline=deadline, progress=progress, margin=margin)
 
 
 def _assembly_obstruction(m: System, u: NDArray) -> str:

@@ -31,7 +31,7 @@ orientation, :func:`pose_lattice`) and linearises the balance there:
    grows steeply near the reach boundary, converge where a Newton step on the whole system
    from the linear prediction does not.  Distinct results, and the linear predictions of the
    candidates whose pose Newton failed (a rod reaching a fold of its sheet), are refined by
-   the FK Newton (:func:`flexkin.solve.fk.refine_fk`).
+   the FK Newton (:func:`flexkin.solve.ik.refine`).
 
 Resolution, not exclusion: a solution is found when its rods' sheets are resolved at the
 lattice spacing around it, which the tests measure against the independent multi-start oracle

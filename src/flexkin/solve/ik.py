@@ -29,7 +29,7 @@ from .equilibrium import equilibrium_triples
 from .finish import SCOPE_MESSAGE, finish_solutions
 from .sliced import newton_within
 
-__all__ = ["ik", "refine_ik", "RESIDUAL_TOL", "as_load"]
+__all__ = ["ik", "refine", "refine_ik", "RESIDUAL_TOL", "as_load"]
 
 #: acceptance threshold on the scaled residual of a refined solution
 RESIDUAL_TOL = 1e-10
@@ -142,7 +142,7 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     # ---- step 3: Newton on the full equations ----------------------------------------------
     if progress is not None:
         progress(0.4, f"Newton on {len(X)} candidates")
-    sols = refine_ik(system, mech, X, charts, w, max_mode, diag, deadline=dl,
+    sols = refine(system, mech, X, charts, w, max_mode, "pose", diag, deadline=dl,
                      progress=substage(progress, 0.45, 1.0, "equilibria"), margin=margin)
     complete = complete and not dl.hit
     msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
@@ -160,18 +160,50 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     return res.select(stable_only=True) if stable_only else res
 
 
-def refine_ik(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int,
-              diag: dict[str, Any] | None = None, deadline: Deadline | None = None,
-              progress: Progress | None = None, margin: bool = False) -> list[Solution]:
-    """Newton-refine IK candidates ``X`` (pose held) and build the solutions (within the
-    ``deadline``, if given: what it leaves no time for is dropped and the deadline is hit;
-    ``margin``: with their stability margins)."""
-    res = newton_within(system, X, charts, load, "pose", deadline)
+def refine(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int, held: str = "pose",
+           diag: dict[str, Any] | None = None, deadline: Deadline | None = None,
+           progress: Progress | None = None, margin: bool = False) -> list[Solution]:
+    """Newton-refine candidates ``X`` and build the solutions: IK and FK share this finish.
+
+    Parameters
+    ----------
+    system : System
+        The equation system of ``mech``.
+    mech : Mechanism
+        The mechanism.
+    X : (n, n_unknowns) array
+        Candidates.
+    charts : (n, 3) int array
+        Their rods' charts.
+    load : (3,) array
+        The load wrench.
+    max_mode : int
+        Largest d-mode reported.
+    held : {"pose", "inputs"}
+        What the Newton holds fixed: the pose (IK) or the inputs (FK).
+    diag : dict, optional
+        Diagnostics, told ``converged`` and what :func:`finish_solutions` counts.
+    deadline : Deadline, optional
+        What it leaves no time for is dropped and the deadline is hit.
+    progress : callable, optional
+        ``progress(fraction, stage)``.
+    margin : bool
+        Compute the stability margins now.
+
+    Returns
+    -------
+    list of Solution
+    """
+    res = newton_within(system, X, charts, load, held, deadline)
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
     return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
-                            deadline=deadline, progress=progress, margin=margin)
+                            held, deadline=deadline, progress=progress, margin=margin)
+
+
+#: IK's name for :func:`refine` with the pose held (the workspace wave calls it so)
+refine_ik = refine
 
 
 def _empty_message(curves) -> str:
