@@ -35,12 +35,9 @@ from flexkin.analysis.feasibility import (
     check_feasibility,
     check_solutions,
     inputs_out_of_range,
-    polyline_crossings,
-    polyline_platform,
     rod_max_curvature,
-    segment_distances,
-    self_crossings,
 )
+from flexkin.core.polyline import polyline_crossings, polyline_platform, segment_distances, self_crossings
 
 sys.path.insert(0, os.path.dirname(__file__))
 import ik_oracle as O
