@@ -24,11 +24,12 @@ def finite(text: str) -> float:
     Parameters
     ----------
     text : str
-        The command-line word.
+        The command-line word, e.g. ``"-1e-3"``.
 
     Returns
     -------
     float
+        The number (``nan`` and ``inf`` are refused).
     """
     try:
         v = float(text)
@@ -40,7 +41,7 @@ def finite(text: str) -> float:
 
 
 def positive(text: str) -> float:
-    """A finite number > 0.
+    """A finite number > 0 (a length, a stiffness, a number of seconds).
 
     Parameters
     ----------
@@ -50,6 +51,7 @@ def positive(text: str) -> float:
     Returns
     -------
     float
+        The number, > 0.
     """
     v = finite(text)
     if v <= 0:
