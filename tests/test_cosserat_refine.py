@@ -326,6 +326,27 @@ def test_system_jacobian_matches_finite_differences(mechs):
             assert np.max(np.abs(fdt - ev.Jt[0])) < 1e-7 * np.max(np.abs(ev.Jt[0]))
 
 
+def test_clamp_derivatives_are_the_affine_coefficients(mechs):
+    """MechData.clamps gives the derivatives of the (affine) clamp map exactly: they match the
+    central differences it used to take, for every kind of leg, and do not depend on u."""
+    rm = importlib.import_module("flexkin.cosserat.refinement")
+    mech = mechs["mixed_legs"]
+    p = CosseratParams(EA=2e3, GA=1e3)
+    sol = flexkin.ik(mech, (0.0, 0.0, math.radians(80.0))).solutions[0]
+    md = rm._mech_data(mech, "fk", (p,) * 3, line_loads((p,) * 3, G, None), (0.0, 0.0, 0.0), [sol])
+    u = np.array([sol.inputs, np.asarray(sol.inputs) + 0.3, [-2.0, 5.0, 0.7]])
+    A, al, L, dA, dal, dL = md.clamps(u, deriv=True)
+    for i, leg in enumerate(mech.legs):
+        hp = 1e-4 * np.maximum(1.0, np.abs(u[:, i]))  # the old step
+        ap, tp, lp = leg.clamp(u[:, i] + hp)
+        am, tm, lm = leg.clamp(u[:, i] - hp)
+        assert np.allclose(dA[:, i], (ap - am) / (2 * hp)[:, None], rtol=1e-9, atol=1e-12)
+        assert np.allclose(dal[:, i], (tp - tm) / (2 * hp), rtol=1e-9, atol=1e-12)
+        assert np.allclose(dL[:, i], (lp - lm) / (2 * hp), rtol=1e-9, atol=1e-12)
+        assert np.all(dA[:, i] == dA[0, i]) and np.all(dal[:, i] == dal[0, i]) and np.all(dL[:, i] == dL[0, i])
+    assert {leg.actuation for leg in mech.legs} == {"prismatic", "revolute", "length"}
+
+
 # ---- clamped rod-platform joints -------------------------------------------------------------------
 def _welded(mechs, joints):
     """unit_3pfr with some rods welded to the platform at the tangent of a Kirchhoff solution.

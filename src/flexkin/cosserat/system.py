@@ -37,8 +37,6 @@ from .rod import MIN_STEPS, auto_steps, shoot
 __all__ = ["MechData", "Evaluation", "Layout", "evaluate", "TWO_PI", "SEGMENT_GROWTH"]
 
 TWO_PI = 2.0 * math.pi
-#: step of the central difference of ``leg.clamp`` (exact for the affine actuators)
-_DU = 1e-4
 #: largest ``L_k sqrt(R_max / EI)`` of one shooting segment (growth of the map ~ e^SEGMENT_GROWTH)
 SEGMENT_GROWTH = 2.5
 _MAX_SEGMENTS = 64
@@ -97,8 +95,8 @@ class MechData:
         """Clamp point, angle and length of the three legs for inputs ``u`` (B, 3).
 
         Returns ``A (B,3,2), alpha (B,3), L (B,3)`` and their derivatives w.r.t. each leg's own
-        input (central differences of ``leg.clamp``, exact for the affine prismatic / revolute /
-        length actuators up to rounding; zeros without ``deriv``).
+        input: the clamp map is affine, ``(A, alpha, L) = c0 + c1 u`` (``leg.actuator.affine``),
+        so the derivatives are ``c1`` exactly (zeros without ``deriv``).
         """
         B = u.shape[0]
         A = np.empty((B, 3, 2))
@@ -111,12 +109,8 @@ class MechData:
             a, t, l = leg.clamp(u[:, i])
             A[:, i], al[:, i], L[:, i] = a, t, l
             if deriv:
-                hp = _DU * np.maximum(1.0, np.abs(u[:, i]))
-                ap, tp, lp = leg.clamp(u[:, i] + hp)
-                am, tm, lm = leg.clamp(u[:, i] - hp)
-                dA[:, i] = (np.asarray(ap) - np.asarray(am)) / (2 * hp)[:, None]
-                dal[:, i] = (np.asarray(tp) - np.asarray(tm)) / (2 * hp)
-                dL[:, i] = (np.asarray(lp) - np.asarray(lm)) / (2 * hp)
+                c1 = leg.actuator.affine()[1]
+                dA[:, i], dal[:, i], dL[:, i] = c1[:2], c1[2], c1[3]
         return A, al, L, dA, dal, dL
 
     def attach(self, pose: NDArray[np.float64]) -> NDArray[np.float64]:
