@@ -557,8 +557,8 @@ def _refine(a, mech, res, setup):
 
 def _refined_entries(res, ref) -> dict[int, dict[str, Any]]:
     """Solution id -> its refined JSON object."""
-    kinds = res.kinds
-    return {s.id: r.to_dict(kinds) for s, r in zip(res.solutions, ref.solutions)}
+    legs = tuple(res.mechanism.legs)
+    return {s.id: r.to_dict(legs) for s, r in zip(res.solutions, ref.solutions)}
 
 
 def _refine_table(res, ref) -> str:

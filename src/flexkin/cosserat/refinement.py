@@ -152,7 +152,7 @@ class _Problem:
         md = self.md
         if md.problem == "ik":
             return np.array([md.Lref, md.Lref, 1.0])
-        return np.array([1.0 if k == "revolute" else md.Lref for k in md.kinds])
+        return md.input_scales()
 
     def same_fixed(self, a, b) -> bool:
         """Whether branches ``a`` and ``b`` hold the same pose (IK) / inputs (FK) fixed."""
@@ -456,8 +456,7 @@ def _final_data(prob: _Problem, keys, zs, ps, stability, elements, tol) -> dict:
 def _shifts(md: MechData, pose, inputs, kpose, kinputs):
     dpos = float(math.hypot(pose[0] - kpose[0], pose[1] - kpose[1]))
     drot = float(math.degrees(pose[2] - kpose[2]))
-    du = tuple(float(math.degrees(a - b)) if k == "revolute" else float(a - b)
-               for a, b, k in zip(inputs, kinputs, md.kinds))
+    du = tuple(float(leg.to_display(a - b)) for a, b, leg in zip(inputs, kinputs, md.legs))
     return dpos, drot, du
 
 

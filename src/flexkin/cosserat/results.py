@@ -137,13 +137,19 @@ class RefinedSolution:
         """d-mode of each rod in the refined model (empty unless reached)."""
         return tuple(r.mode for r in self.rods)
 
-    def to_dict(self, kinds: tuple[str, ...]) -> dict[str, Any]:
-        """JSON-ready dict (SPEC §4 units: degrees for angles and revolute inputs)."""
+    def to_dict(self, legs: tuple[Any, ...]) -> dict[str, Any]:
+        """JSON-ready dict (SPEC §4 units: degrees for angles and revolute inputs).
+
+        Parameters
+        ----------
+        legs : tuple of Leg
+            The mechanism's legs (their ``to_display`` gives the inputs' display units).
+        """
 
         def inputs(u):
             if u is None:
                 return None
-            return [float(math.degrees(x)) if k == "revolute" else float(x) for x, k in zip(u, kinds)]
+            return [float(leg.to_display(x)) for x, leg in zip(u, legs)]
 
         def pose(p):
             return None if p is None else [p[0], p[1], float(math.degrees(p[2]))]
@@ -204,7 +210,7 @@ class RefineResult:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict."""
-        kinds = tuple(leg.actuation for leg in self.mechanism.legs)
+        legs = tuple(self.mechanism.legs)
         return {
             "problem": "refine-" + self.problem, "mechanism": getattr(self.mechanism, "name", ""),
             "load": list(self.load), "gravity": None if self.gravity is None else list(self.gravity),
@@ -212,8 +218,8 @@ class RefineResult:
                         "mass_per_length": p.mass_per_length, "distributed_load": list(p.distributed_load)}
                        for p in self.params],
             "line_loads": [list(f) for f in self.line_loads],
-            "solutions": [s.to_dict(kinds) for s in self.solutions],
-            "born": [s.to_dict(kinds) for s in self.born],
+            "solutions": [s.to_dict(legs) for s in self.solutions],
+            "born": [s.to_dict(legs) for s in self.born],
             "message": self.message, "elapsed": self.elapsed,
             "diagnostics": dict(self.diagnostics),
         }

@@ -75,8 +75,12 @@ class MechData:
         if self.problem == "fk":
             w = [self.Lref, self.Lref, 1.0]
         else:
-            w = [1.0 if k == "revolute" else self.Lref for k in self.kinds]
+            w = list(self.input_scales())
         return np.array([Fs, Fs, Ms] * 3 + w)
+
+    def input_scales(self) -> NDArray[np.float64]:
+        """Scale of each leg's input (``Lref``, or 1 for an angle: the actuators' ``input_scale``)."""
+        return np.array([leg.actuator.input_scale(self.Lref) for leg in self.legs])
 
     @property
     def sr(self) -> NDArray[np.float64]:

@@ -67,19 +67,20 @@ def plot_path(result, path: str | None = None) -> Any:
     t = result.t
     u = result.inputs_display()
     L_ref = float(result.mechanism.length_scale)
+    legs = result.mechanism.legs
     kinds = list(result.kinds)
-    mixed = "revolute" in kinds and any(k != "revolute" for k in kinds)
+    units = [leg.input_unit for leg in legs]
+    mixed = len(set(units)) > 1
     ax_deg = ax1.twinx() if mixed else ax1  # angles on their own axis: m and deg never share a scale
     lines = []
-    for i, kind in enumerate(kinds):
-        unit = "deg" if kind == "revolute" else "m"
-        ax = ax_deg if kind == "revolute" else ax1
+    for i, (kind, unit) in enumerate(zip(kinds, units)):
+        ax = ax_deg if unit == "deg" else ax1
         lines += ax.plot(t, u[:, i], "-o", ms=2.5, color=LEG_COLORS[i], label=f"u{i + 1} [{unit}] ({kind})")
     if mixed:
         ax1.set_ylabel("input [m]")
         ax_deg.set_ylabel("input [deg]")
     else:
-        ax1.set_ylabel("input [deg]" if kinds and kinds[0] == "revolute" else "input [m]")
+        ax1.set_ylabel(f"input [{units[0]}]")
     ax1.legend(handles=lines, fontsize=8, loc="best")
 
     ax2.plot(t, result.sing_ik, "-o", ms=2.5, color="k", label="sing_ik (0: IK singularity)")

@@ -92,8 +92,9 @@ def _what(result) -> str:
     if result.problem == "ik":
         g = result.given
         return "pose (%.4g m, %.4g m, %.4g°)" % (g[0], g[1], np.degrees(g[2]))
-    units = [leg.input_unit for leg in result.mechanism.legs]
-    return "inputs (" + ", ".join(f"{v:.4g} {u}" for v, u in zip(_display_inputs(result), units)) + ")"
+    legs = result.mechanism.legs
+    return "inputs (" + ", ".join(f"{float(leg.to_display(v)):.4g} {leg.input_unit}"
+                                  for v, leg in zip(result.given, legs)) + ")"
 
 
 def _ids(sols) -> str:
@@ -208,5 +209,3 @@ def plot_solutions(result, path: str | None = None, per_page: int | None = None,
     return figs[0]
 
 
-def _display_inputs(result) -> list[float]:
-    return [float(np.degrees(u)) if k == "revolute" else float(u) for u, k in zip(result.given, result.kinds)]
