@@ -70,8 +70,7 @@ def parameter_block(system: System, Xs: NDArray, charts: NDArray, dc0: NDArray, 
         f = (EIi / Li**2)[:, None] * w_                        # world force on the rod tip
         mL = EIi / Li * q[:, i, ML]
         b = system.attach[i]
-        bx = ct * b[0] - st * b[1]
-        by = st * b[0] + ct * b[1]
+        bx, by = rotate(b, th).T  # Rot(theta) b_i, (n,) each
         row = lay.tip[i].start
         clamped = bool(system.clamped[i])
         # d G / d (A_x, A_y, alpha, L) of leg i, (n, n_eq, 4)

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from ..core.geometry2d import rotate
 from ..core.jit import njit
 from numpy.typing import NDArray
 
@@ -119,9 +120,7 @@ class MechData:
 
     def attach(self, pose: NDArray[np.float64]) -> NDArray[np.float64]:
         """``B_i - P`` in the world frame, (B, 3, 2)."""
-        c, s = np.cos(pose[:, 2])[:, None], np.sin(pose[:, 2])[:, None]
-        bx, by = self.b[:, 0][None], self.b[:, 1][None]
-        return np.stack([c * bx - s * by, s * bx + c * by], -1)
+        return rotate(self.b[None], pose[:, 2:3])
 
 
 @dataclass(frozen=True)

@@ -234,9 +234,9 @@ def profiles(rods: Sequence[RodState], n: int = 101) -> dict[str, NDArray[np.flo
     a = np.array([r.clamp_angle for r in rods], dtype=float).reshape(-1, 1)
     c = np.array([r.clamp for r in rods], dtype=float).reshape(-1, 2)
     EI = np.array([r.EI for r in rods], dtype=float).reshape(-1, 1)
-    ca, sa = np.cos(a), np.sin(a)
-    x = L * (ca * u[..., 0] - sa * u[..., 1]) + c[:, :1]
-    y = L * (sa * u[..., 0] + ca * u[..., 1]) + c[:, 1:]
+    r = rotate(u[..., :2], a)  # the unit rod turned by the clamp angle
+    x = L * r[..., 0] + c[:, :1]
+    y = L * r[..., 1] + c[:, 1:]
     return {"s": s[None, :] * L, "x": x, "y": y, "theta": u[..., 2] + a, "moment": u[..., 3] * EI / L}
 
 

@@ -52,6 +52,7 @@ from typing import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.geometry2d import platform_points, rotate
 from ..core.jit import njit
 from ..core.linalg import solve_into
 from ..rod.atlas import get_atlas
@@ -451,9 +452,9 @@ def pose_lattice(A: NDArray, L: NDArray, b: NDArray, h: float, n_theta: int
         ``nth`` (periodic).
     """
     ts = np.linspace(-math.pi, math.pi, 7200, endpoint=False)
-    c, s = np.cos(ts)[:, None], np.sin(ts)[:, None]
-    cx = A[None, :, 0] - (c * b[None, :, 0] - s * b[None, :, 1])  # P = A_j - Rot b_j + (|.| <= L_j)
-    cy = A[None, :, 1] - (s * b[None, :, 0] + c * b[None, :, 1])
+    rb = rotate(b, ts[:, None])  # (n_t, 3, 2)
+    cx = A[None, :, 0] - rb[..., 0]  # P = A_j - Rot b_j + (|.| <= L_j)
+    cy = A[None, :, 1] - rb[..., 1]
     xlo, xhi, ylo, yhi = _disks_meet_box(cx, cy, L)
     ok = (xlo <= xhi) & (ylo <= yhi)
     step = TWO_PI / len(ts)
@@ -495,11 +496,8 @@ def _lattice_index(P: NDArray, lat: NDArray, nth: int, box: NDArray, kin: NDArra
     k = np.mod(fk, nth).astype(np.int64)
     ok = (fi >= box[0]) & (fi <= box[1]) & (fj >= box[2]) & (fj <= box[3]) & kin[k]
     x, y, th = lat[0] + fi * lat[1], lat[2] + fj * lat[1], lat[3] + k * lat[4]
-    c, s = np.cos(th), np.sin(th)
-    for j in range(3):
-        bx = x + c * b[j, 0] - s * b[j, 1] - A[j, 0]
-        by = y + s * b[j, 0] + c * b[j, 1] - A[j, 1]
-        ok &= bx * bx + by * by <= L[j] * L[j] * (1.0 + 1e-9)
+    d = platform_points(b, np.column_stack([x, y, th])) - A[None]  # B_j - A_j, (n, 3, 2)
+    ok &= np.all(np.sum(d * d, axis=-1) <= L * L * (1.0 + 1e-9), axis=1)
     fi, fj = fi.astype(np.int64), fj.astype(np.int64)
     key = ((fi + _BIAS) << (2 * _BITS)) | ((fj + _BIAS) << _BITS) | k
     return key, dp, ok
@@ -511,16 +509,13 @@ def _seeds(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat: NDA
     one per lattice orientation) with the nearest lattice pose (key, chart coordinates, pose
     step), and the chart code, chart dimension and force cap of the leg's rods."""
     b = np.asarray(system.attach, dtype=float)
-    ca, sa = math.cos(al[i]), math.sin(al[i])
     if system.clamped[i]:
         W = get_wrench_atlas(max_mode)
         # the scope with a margin (rods at its edge are continued into it)
         valid = np.isfinite(W.x) & (W.mode <= max_mode + 1) & (np.abs(W.th) <= turning_max(max_mode) + 1.0)
-        bx = A[i, 0] + L[i] * (ca * W.x - sa * W.y)
-        by = A[i, 1] + L[i] * (sa * W.x + ca * W.y)
+        tip = A[i] + L[i] * rotate(np.stack([W.x, W.y], -1), al[i])
         th = al[i] + W.th - system.tip_angle[i]
-        c, s = np.cos(th), np.sin(th)
-        P = np.stack([bx - (c * b[i, 0] - s * b[i, 1]), by - (s * b[i, 0] + c * b[i, 1]), th], -1)[valid]
+        P = np.concatenate([tip - rotate(b[i], th), th[..., None]], -1)[valid]
         lam = np.broadcast_to(W.lam[:, None, None], W.x.shape)[valid]
         psi = np.broadcast_to((np.arange(W.x.shape[1]) * (TWO_PI / W.x.shape[1]))[None, :, None], W.x.shape)[valid]
         t = np.broadcast_to(W.t[None, None, :], W.x.shape)[valid]
@@ -528,16 +523,16 @@ def _seeds(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat: NDA
         key, dp, ok = _lattice_index(P, lat, nth, box, kin, A, L, b)
         return key[ok], Z[ok], dp[ok], CHART_WRENCH, 3, (1.2 * lambda_max(max_mode)) ** 2
     At = get_atlas(max_mode)
-    tx = (A[i, 0] + L[i] * (ca * At.x - sa * At.y)).ravel()
-    ty = (A[i, 1] + L[i] * (sa * At.x + ca * At.y)).ravel()
+    tip = A[i] + L[i] * rotate(np.stack([At.x, At.y], -1), al[i])
+    tx, ty = tip[..., 0].ravel(), tip[..., 1].ravel()
     Z2 = np.stack(np.broadcast_arrays(At.v[:, None], At.phis[None, :]), -1).reshape(-1, 2)
     fin = np.isfinite(tx) & np.isfinite(ty)
     tx, ty, Z2 = tx[fin], ty[fin], Z2[fin]
     keys, zs, dps = [], [], []
     for k in np.flatnonzero(kin):
         th = lat[3] + k * lat[4]
-        c, s = math.cos(th), math.sin(th)
-        P = np.column_stack([tx - (c * b[i, 0] - s * b[i, 1]), ty - (s * b[i, 0] + c * b[i, 1]), np.full(len(tx), th)])
+        rb = rotate(b[i], th)
+        P = np.column_stack([tx - rb[0], ty - rb[1], np.full(len(tx), th)])
         key, dp, ok = _lattice_index(P, lat, nth, box, kin, A, L, b)
         keys.append(key[ok])
         zs.append(np.column_stack([Z2[ok], np.zeros(np.count_nonzero(ok))]))
