@@ -324,3 +324,25 @@ def test_pinned_json_has_zero_tip_moments():
             assert set(r) == {"mode", "k", "psi_deg", "tip_force", "base_moment", "tip_moment", "energy",
                               "mode_boundary"}
             assert r["tip_moment"] == 0.0
+
+
+def test_cli_json_of_clamped_design_is_finite(capsys):
+    """``ik --json --feasibility`` and ``path --json`` on the mixed clamped example exit 0 with
+    strict JSON (they failed with "non-finite number in the JSON output": the peak strain of a
+    clamped rod was NaN); every rod's peak curvature is finite and at least its end moments."""
+    import json
+
+    from flexkin.cli import main
+
+    ex = str(Path(__file__).resolve().parents[1] / "examples" / "mixed_clamped.toml")
+    assert main(["ik", ex, "--pose", "0.02", "-0.05", "5.73", "--json", "--feasibility"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["solutions"]
+    EI = [leg.rod.EI for leg in flexkin.load_mechanism(ex).legs]
+    for s in d["solutions"]:
+        k = s["feasibility"]["max_curvatures"]
+        assert all(math.isfinite(v) for v in k)
+        for v, rod, ei in zip(k, s["rods"], EI):
+            assert v >= max(abs(rod["base_moment"]), abs(rod["tip_moment"])) / ei * (1 - 1e-12)
+    assert main(["path", ex, "--from", "0.02", "-0.05", "5.73", "--to", "0.03", "-0.04", "5.73", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["points"]
