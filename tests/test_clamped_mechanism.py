@@ -247,8 +247,9 @@ def test_stability_against_the_oracle(name):
 FK_ORACLE_QUICK = dict(max_mode=2, max_turn=math.pi, clamped_grid=(0.1, 24), n_random=0)
 #: inputs of the IK solutions (CASES' poses, sorted by their largest tip force) whose FK is
 #: compared: the default run and the slow study
-FK_PICKS = {"sym": (0, 10), "mixed": (0, 3)}
-FK_PICKS_SLOW = {"sym": (3, 30, 60, 100), "mixed": (8, 15, 22)}
+#: one pick per mechanism in the default run (clamped FK takes 20-60 s; issue 25), the rest with -m slow
+FK_PICKS = {"sym": (0,), "mixed": (3,)}
+FK_PICKS_SLOW = {"sym": (3, 10, 30, 60, 100), "mixed": (0, 8, 15, 22)}
 
 
 def _fk_inputs(name: str, pick: int) -> tuple[float, ...]:
