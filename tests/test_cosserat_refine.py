@@ -94,10 +94,13 @@ def _check_against_oracle(mech, sol, params, gravity, Ns=(24, 48, 96)):
 def test_kirchhoff_params_give_back_the_kirchhoff_solutions(mechs):
     mech = mechs["unit_3pfr"]
     res = flexkin.ik(mech, (0.05, -0.02, math.radians(10.0)))
-    r = refine(mech, res, params=CosseratParams.kirchhoff())
-    assert len(r.solutions) == len(res.solutions) > 50
+    assert len(res.solutions) > 50
+    some = res.solutions[::3]  # every third: all d-modes and both verdicts, a third of the time
+    r = refine(mech, some, problem="ik", load=res.load, params=CosseratParams.kirchhoff())
+    assert len(r.solutions) == len(some)
+    assert {s.modes for s in some} == {s.modes for s in res.solutions}
     agree = resolved = 0
-    for s, k in zip(r.solutions, res.solutions):
+    for s, k in zip(r.solutions, some):
         assert s.status == "refined" and s.verified
         assert s.position_shift == 0.0 and s.rotation_shift_deg == 0.0
         assert max(abs(d) for d in s.input_shift) < 1e-10
@@ -108,7 +111,7 @@ def test_kirchhoff_params_give_back_the_kirchhoff_solutions(mechs):
         if s.stable is not None and k.stable is not None:
             resolved += 1
             agree += s.stable == k.stable
-    assert resolved >= 0.9 * len(res.solutions) and agree == resolved
+    assert resolved >= 0.9 * len(some) and agree == resolved
     REPORT["cosserat tau=0 stability agreement (unit 3-PFR)"] = f"{agree}/{resolved} resolved verdicts agree"
 
 

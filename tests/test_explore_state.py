@@ -431,3 +431,25 @@ def test_responsiveness_bench_smoke():
     r = responsiveness(PROTO, moves=6, refreshes=1)
     assert r["track"]["n"] == 6 and r["refresh"]["n"] == 1 and r["n_solutions"] > 0
     assert r["track"]["median_ms"] > 0 and set(r["met"]) == {"track", "refresh"}
+
+
+def test_prismatic_guide_follows_the_input_offset(mech):
+    """The guide of a prismatic leg spans the clamp positions of its input range: with an input
+    zero offset (``[[leg]] offset``, e.g. from ``flexkin calibrate``) the slider sits at
+    ``origin + (u + offset) direction``, so the guide moves with it."""
+    import dataclasses
+
+    from flexkin.explore.scene import base_layers
+
+    legs = tuple(dataclasses.replace(leg, offset=0.05 * (k + 1)) if leg.actuation == "prismatic" else leg
+                 for k, leg in enumerate(mech.legs))
+    moved = dataclasses.replace(mech, legs=legs)
+    guides = base_layers(moved)["guides"]
+    for i, leg in enumerate(moved.legs):
+        if leg.actuation != "prismatic":
+            continue
+        lo, hi = input_bounds(moved, i)
+        ends = np.array([guides["xs"][i], guides["ys"][i]]).T
+        for u in (lo, hi):
+            clamp = np.asarray(leg.clamp(u)[0], dtype=float)
+            assert np.min(np.hypot(*(ends - clamp).T)) < 1e-12

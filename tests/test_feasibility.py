@@ -353,6 +353,33 @@ def test_max_curvature_closed_form_against_ode_and_fd():
         assert rod_max_curvature(rod) == pytest.approx(abs(rod.base_moment) / rod.EI, rel=1e-12)
 
 
+def test_max_curvature_of_clamped_rods_against_ode():
+    """Clamped-tip rods (wrench chart): the first-integral peak equals the peak of the rod
+    re-integrated from its clamp (scipy ODE, 20001 points), interior peaks and end peaks alike;
+    it is finite, so a strain limit is enforced on them (it was NaN)."""
+    from flexkin.rod.kernels import CHART_WRENCH
+
+    m = mech("mixed_clamped")
+    sols = flexkin.ik(m, (0.02, -0.05, np.radians(5.73))).solutions
+    rods = [r for s in sols for r in s.rods if r.chart == CHART_WRENCH]
+    assert len(rods) >= 20
+    interior = 0
+    for rod in rods:
+        k = rod_max_curvature(rod)
+        ends = max(abs(rod.base_moment), abs(rod.tip_moment)) / rod.EI
+        interior += k > ends * (1 + 1e-6)
+        assert np.isfinite(k)
+        assert k == pytest.approx(ode_max_strain(rod, 1.0), rel=1e-6)
+    assert interior > 0  # the interior branch is exercised
+    radius = 0.2 / max(rod_max_curvature(r) for r in sols[0].rods)  # rod peaks at strain 0.2
+    f = check_feasibility(m, sols[0], max_strain=0.1)
+    assert all(s is None for s in f.strains)  # no radius in the file: skipped, not judged
+    legs = tuple(dataclasses.replace(leg, rod=dataclasses.replace(leg.rod, radius=radius)) for leg in m.legs)
+    f = check_feasibility(dataclasses.replace(m, legs=legs), sols[0], max_strain=0.1)
+    assert f.max_strain == pytest.approx(0.2, rel=1e-9) and not f.feasible
+    assert any(r.startswith("strain") for r in f.reasons)
+
+
 def test_strain_just_above_and_below_the_limit():
     m = mech("prototype_3pfr")
     sol = max(ik90("prototype_3pfr").solutions, key=lambda s: s.energy)

@@ -183,10 +183,19 @@ class Feasibility:
 # strain and inputs
 # --------------------------------------------------------------------------------------
 def rod_max_curvature(rod: Any, n_samples: int = 0) -> float:
-    """Peak ``|theta'(s)|`` of a rod (1/m), in closed form.
+    """Peak ``|theta'(s)|`` of a rod (1/m), exact.
 
-    ``2 |ku| sqrt(R/EI)`` if the clamp amplitude ``phis <= 0`` (the curvature has an
-    interior extremum), else the clamp value ``2 |ku| sqrt(R/EI) cos(phis) = |m0|/EI``.
+    A pinned rod in the unified chart (module docstring): ``2 |ku| sqrt(R/EI)`` if the clamp
+    amplitude ``phis <= 0`` (the curvature has an interior extremum), else the clamp value
+    ``2 |ku| sqrt(R/EI) cos(phis) = |m0|/EI``.
+
+    A rod in the wrench chart (every clamped-tip rod): the first integral of the elastica
+    with the tip force ``F`` on the rod, ``EI theta'^2 / 2 + F . t(theta) = const`` (``t`` the
+    unit tangent; from ``EI theta'' = -(t x F)``), makes ``theta'^2`` a function of ``theta``
+    alone, largest where ``t = -F/|F|``.  The peak is therefore the larger end moment over EI,
+    or ``sqrt(theta'(0)^2 + 2 (F . t(0) + |F|) / EI)`` if the tangent passes through
+    ``-F/|F|`` along the rod -- found by bracketing on the sampled tangent angle, which is
+    exact up to a tangency that changes the value by less than the sampling's O(h^2).
 
     Parameters
     ----------
@@ -199,13 +208,43 @@ def rod_max_curvature(rod: Any, n_samples: int = 0) -> float:
     -------
     float
     """
-    lam = math.sqrt(max(float(rod.R), 0.0) / float(rod.EI))
-    peak = 2.0 * abs(float(rod.ku)) * lam
-    kmax = peak if float(rod.phis) <= 0.0 else peak * abs(math.cos(float(rod.phis)))
-    kmax = max(kmax, abs(float(rod.base_moment)) / float(rod.EI))
+    from ..rod.kernels import CHART_WRENCH
+
+    EI = float(rod.EI)
+    kmax = max(abs(float(rod.base_moment)), abs(float(rod.tip_moment))) / EI
+    if rod.chart == CHART_WRENCH:
+        kmax = max(kmax, _wrench_interior_peak(rod))
+    else:
+        lam = math.sqrt(max(float(rod.R), 0.0) / EI)
+        peak = 2.0 * abs(float(rod.ku)) * lam
+        kmax = max(kmax, peak if float(rod.phis) <= 0.0 else peak * abs(math.cos(float(rod.phis))))
     if n_samples > 1:
         kmax = max(kmax, float(np.max(np.abs(rod.curvature(n_samples)))))
     return kmax
+
+
+#: samples of the tangent angle used to bracket the direction of peak curvature (wrench chart)
+_BRACKET_SAMPLES = 257
+
+
+def _wrench_interior_peak(rod: Any) -> float:
+    """Interior peak curvature of a rod in the wrench chart (see :func:`rod_max_curvature`),
+    0 when its tangent never points along ``-F``."""
+    fx, fy = (float(v) for v in rod.tip_force)
+    R = math.hypot(fx, fy)
+    if R == 0.0:
+        return 0.0
+    th = rod.profile(_BRACKET_SAMPLES)["theta"]
+    target = math.atan2(-fy, -fx)
+    # does theta(s) cross target + 2 pi j between two samples (or touch it at one)?
+    lo, hi = np.minimum(th[:-1], th[1:]), np.maximum(th[:-1], th[1:])
+    j = np.ceil((lo - target) / (2.0 * math.pi))
+    if not np.any(target + 2.0 * math.pi * j <= hi):
+        return 0.0
+    EI = float(rod.EI)
+    k0 = float(rod.base_moment) / EI
+    ft0 = fx * math.cos(th[0]) + fy * math.sin(th[0])
+    return math.sqrt(max(k0 * k0 + 2.0 * (ft0 + R) / EI, 0.0))
 
 
 def _fmt(v: float) -> str:

@@ -149,8 +149,8 @@ def base_layers(mech) -> dict[str, dict[str, list]]:
         o = np.asarray(leg.origin, dtype=float)
         d = np.array([math.cos(leg.angle), math.sin(leg.angle)])
         if leg.actuation == "prismatic":
-            lo, hi = input_bounds(mech, i)
-            a, b = o + lo * d, o + hi * d
+            lo, hi = input_bounds(mech, i)  # of the input u; the slider sits at u + offset
+            a, b = o + (lo + leg.offset) * d, o + (hi + leg.offset) * d
         elif leg.actuation == "length":
             a, b = o - 0.1 * scale * d, o
         else:

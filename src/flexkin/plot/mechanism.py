@@ -49,8 +49,8 @@ def _draw_leg_base(ax: Axes, leg: Leg, scale: float, u: float | None) -> None:
     if leg.actuation == "prismatic":
         L = float(leg.rod.length)  # type: ignore[arg-type]
         lo, hi = 0.0, 0.5 * L
-        if leg.range is not None:
-            lo, hi = min(lo, leg.range[0]), max(hi, leg.range[1])
+        if leg.range is not None:  # a range of the input u; the slider sits at u + offset
+            lo, hi = min(lo, leg.range[0] + leg.offset), max(hi, leg.range[1] + leg.offset)
         if u is not None:
             lo, hi = min(lo, u + leg.offset), max(hi, u + leg.offset)
         a, b = o + lo * d, o + hi * d
