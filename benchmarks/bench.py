@@ -3,7 +3,11 @@ tests' own independent multi-start oracles.
 
 Run::
 
-    python benchmarks/bench.py [--repeat N] [--quick] [--json PATH] [--only SUBSTRING ...]
+    python benchmarks/bench.py [--repeat N] [--quick] [--json PATH] [--only GROUP ...]
+
+``--only`` runs the named groups of rows: ``cli`` (whole-process IK and calibrate), ``ik``, ``fk``,
+``continuation``, ``workspace``, ``extra`` (verification, explorer, Cosserat), ``oracle`` (the
+``ik`` group runs too when a later group needs its results).
 
 Every row reports the median, min and max wall-clock time of ``N`` runs after one warm-up run
 and the median CPU time (all threads of the process, and for whole-process rows of the child; on
@@ -323,6 +327,10 @@ def oracle_rows(rows: list[Row], ctx: dict) -> None:
                                      "flexkin_n": len(res), "oracle_n": len(sols)}))
 
 
+#: the groups of rows, in the order they run (``--only``)
+GROUPS = ("cli", "ik", "fk", "continuation", "workspace", "extra", "oracle")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeat", type=int, default=5, help="timed runs per row after a warm-up (default 5)")
@@ -330,6 +338,8 @@ def main(argv: list[str] | None = None) -> int:
                                                          "Cosserat")
     ap.add_argument("--json", metavar="PATH", help="also write the rows as JSON to PATH")
     ap.add_argument("--no-oracle", action="store_true", help="skip the oracle rows (minutes)")
+    ap.add_argument("--only", nargs="+", metavar="GROUP", choices=GROUPS,
+                    help="run only these groups of rows: " + ", ".join(GROUPS))
     a = ap.parse_args(argv)
     if a.repeat < 1:
         ap.error("--repeat must be >= 1")
@@ -339,15 +349,24 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[Row] = []
     ctx: dict = {}
     t_all = time.perf_counter()
-    cli_ik_row(rep, rows, ctx)
-    cli_calibrate_row(rep, rows, ctx)
-    ik_rows(rep, rows, ctx)
-    if not a.quick:
+    want = set(a.only or GROUPS)
+    if want & {"cli"}:
+        cli_ik_row(rep, rows, ctx)
+        cli_calibrate_row(rep, rows, ctx)
+    if want - {"cli"}:  # the other groups use the IK results
+        n = len(rows)
+        ik_rows(rep, rows, ctx)
+        if "ik" not in want:
+            del rows[n:]
+    if "fk" in want and not a.quick:
         fk_rows(rep, rows, ctx)
-    continuation_rows(rep, rows, ctx)
-    workspace_rows(rep, rows, ctx, a.quick)
-    extra_rows(rep, rows, ctx, a.quick)
-    if not (a.quick or a.no_oracle):
+    if "continuation" in want:
+        continuation_rows(rep, rows, ctx)
+    if "workspace" in want:
+        workspace_rows(rep, rows, ctx, a.quick)
+    if "extra" in want:
+        extra_rows(rep, rows, ctx, a.quick)
+    if "oracle" in want and not (a.quick or a.no_oracle):
         oracle_rows(rows, ctx)
     cores = os.cpu_count()
     load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
