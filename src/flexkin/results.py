@@ -104,6 +104,7 @@ class Solution:
     Attributes
     ----------
     mechanism : Mechanism
+        The mechanism this is an equilibrium of.
     pose : tuple of 3 floats
         ``(x, y, theta)`` of the platform reference point P (m, m, rad).
     inputs : tuple of 3 floats
@@ -117,13 +118,22 @@ class Solution:
     charts : ndarray (3,)
         The rods' charts (:mod:`flexkin.rod.kernels`).
     residual : float
-        Infinity norm of the scaled residual after refinement.
+        Infinity norm of the scaled residual after refinement (dimensionless: the equations
+        scaled to O(1) as in :mod:`flexkin.system`).
     stability : Stability or None
+        Stability with the actuators locked (paper §4.3); ``None`` if not computed.
     jacobian : Jacobians or None
+        Kinematic Jacobians and singularity measures at the solution (Eq. 16); ``None`` if not
+        computed.
     verified : bool or None
         Independent a-posteriori check (:mod:`flexkin.analysis.verify`); ``None`` if not run.
     condition : float or None
         Estimated condition number of the Newton system at the solution.
+    verify_error : float or None
+        The largest scaled residual of that check (dimensionless: positions in ``L_ref``,
+        angles in rad, forces in ``F_ref``, moments in ``F_ref L_ref``; ``inf`` when an
+        integration failed); ``verified`` requires it at most
+        :data:`flexkin.analysis.verify.VERIFY_TOL`.  ``None`` if not run.
     id : int
         1-based number of the solution in its result, the same in tables, JSON, figures and
         the ``path --solution`` option.
@@ -297,9 +307,9 @@ class Result:
     message : str
         One line explaining an empty or incomplete result.
     elapsed : float
-        Seconds.
+        Wall-clock time of the call, s.
     diagnostics : dataclass
-        Typed counters of the solver.
+        Typed counters of the solver (e.g. :class:`IKDiagnostics`, :class:`FKDiagnostics`).
     """
 
     solutions: tuple = ()
@@ -327,14 +337,25 @@ class Result:
 class KinematicsResult(Result):
     """All equilibria found by an inverse or forward kinematics call.
 
+    The fields ``solutions``, ``complete``, ``message``, ``elapsed`` and ``diagnostics`` are
+    those of :class:`Result`.
+
     Attributes
     ----------
-    problem : ``"ik"`` or ``"fk"``.
-    mechanism : the :class:`~flexkin.mechanism.Mechanism`.
-    given : the pose (IK; rad) or the inputs (FK; SI) that were imposed.
-    load : (Fx, Fy, Mz).
-    max_mode : largest d-mode searched.
-    curves : the geometric-condition curves (IK), else ``None``.
+    problem : {"ik", "fk"}
+        Inverse or forward kinematics.
+    mechanism : Mechanism
+        The :class:`~flexkin.mechanism.Mechanism` solved.
+    given : tuple of 3 floats
+        What was imposed: the pose ``(x, y, theta)`` (IK; m, m, rad) or the inputs (FK; SI: m
+        for prismatic and length legs, rad for revolute legs).
+    load : tuple of 3 floats
+        Load wrench ``(Fx, Fy, Mz)`` on the platform at P (N, N, N m).
+    max_mode : int
+        Largest d-mode of any rod searched.
+    curves : list of LegCurve or None
+        The geometric-condition curves of each leg (IK, :func:`flexkin.solve.curves.leg_curves`),
+        else ``None``.
     """
 
     problem: str = "ik"

@@ -469,8 +469,24 @@ def closed_form_index(system: System, X: NDArray, charts: NDArray
 @dataclass(frozen=True)
 class Eigenpairs:
     """The lowest eigenvector of the discretised second variation of ``n`` equilibria, to start
-    the next computation along a continuation: ``elements`` (n, 3) per rod, ``rods`` (n, 3,
-    nmax) the rods' coefficients, ``pose`` (n, 3), ``valid`` (n,)."""
+    the next computation along a continuation (:mod:`flexkin.analysis.second_variation`; the
+    vector is dimensionless, in the scaled variables of Eq. F1).
+
+    Attributes
+    ----------
+    elements : ndarray (n, 3) of int
+        Number of finite elements of each rod; a guess is used only where the next
+        equilibrium has the same elements.
+    rods : ndarray (n, 3, nmax)
+        Coefficients of each rod's tangent-angle perturbation ``eta_i`` in the hierarchical
+        p-version basis (degree ``P_FINE``, element by element; ``nmax`` = the largest
+        ``elements`` times ``P_FINE``, zero-padded).
+    pose : ndarray (n, 3)
+        The platform part ``(dx / L_ref, dy / L_ref, dtheta)``.
+    valid : ndarray (n,) of bool
+        The eigenvector was computed (the margin is finite); only valid rows start a later
+        computation.
+    """
 
     elements: NDArray[np.int64]
     rods: NDArray[np.float64]

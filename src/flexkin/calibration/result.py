@@ -132,12 +132,52 @@ class CalibrationResult(Result):
     """Result of :func:`flexkin.calibrate`.
 
     ``solutions`` are the :class:`RowFit` of every measurement row (also :attr:`rows`),
-    outliers included (flagged).  ``parameters`` are the estimates; ``correlation`` their
-    correlation matrix; ``singular_values`` those of the scaled parameter Jacobian (relative to
-    the largest), ``combinations`` the weakest directions; ``identifiable`` is False when one
-    combination is not seen by the data at all.  ``rms_before``/``rms_after``/``loo_rms`` hold
-    ``xy`` (m), ``theta_deg`` (deg), ``u`` (m) and ``u_deg`` (deg) over the fitted rows (None
-    where no row measures that quantity).  ``calibrated`` is the mechanism with the estimates.
+    outliers included (flagged); ``complete`` is ``False`` when the optimizer stopped without
+    converging; ``message``, ``elapsed`` and ``diagnostics`` (:class:`CalibrationDiagnostics`)
+    are as in :class:`~flexkin.results.Result`.
+
+    Attributes
+    ----------
+    mechanism : Mechanism
+        The mechanism as given (the nominal parameters).
+    calibrated : Mechanism
+        The mechanism with the estimates.
+    parameters : tuple of ParameterEstimate
+        The estimates, one per fitted scalar parameter, in display units (m, deg, Pa, N m^2).
+    correlation : ndarray (p, p) or None
+        Correlation matrix of the estimates (dimensionless); ``NaN`` rows and columns for the
+        parameters the data do not identify.
+    singular_values : tuple of float
+        Singular values of the scaled parameter Jacobian (of the weighted residuals per typical
+        change of each parameter), relative to the largest (dimensionless).
+    combinations : tuple of Combination
+        The weakest directions of the scaled parameter space (relative singular value below
+        :data:`flexkin.calibration.fit.WEAK`).
+    identifiable : bool
+        ``False`` when one combination is not seen by the data at all (relative singular value
+        below :data:`flexkin.calibration.fit.NOT_IDENTIFIABLE`), or when no row was fitted.
+    rms_before, rms_after, loo_rms : dict
+        RMS errors over the fitted rows at the nominal parameters, at the estimates, and in
+        leave-one-out: ``xy`` (position, m), ``theta_deg`` (orientation, deg), ``u`` (inputs
+        of prismatic and length legs, m) and ``u_deg`` (inputs of revolute legs, deg);
+        ``None`` where no row measures that quantity.
+    chi2 : float
+        Sum of the squared residuals over their standard deviations at the estimates
+        (dimensionless).
+    dof : int
+        Degrees of freedom: number of fitted residuals minus number of parameters.
+    scale : float
+        ``sqrt(chi2 / dof)`` (dimensionless; ``NaN`` when ``dof <= 0``): the factor by which
+        the rows' standard deviations are scaled in the covariance unless ``absolute_sigma``.
+    absolute_sigma : bool
+        The rows' standard deviations were taken as exact (covariance not scaled).
+    loss : str
+        The least-squares loss used (``"linear"`` or a robust loss of
+        :func:`scipy.optimize.least_squares`).
+    model : {"kirchhoff", "cosserat"}
+        The rod model the predictions were made with.
+    source : str
+        Where the measurements came from (the measurement file's path, or ``"<rows>"``).
     """
 
     mechanism: Any = field(default=None, repr=False)

@@ -45,16 +45,43 @@ Reply = tuple[NDArray[np.float64], NDArray[np.float64] | None, NDArray[np.float6
 
 @dataclass(frozen=True)
 class ContinuationOptions:
-    """Step control and tolerances (scaled units: unknowns O(1), tau in [0, 1]).
+    """Step control and tolerances of the pseudo-arclength continuation.
 
-    ``ds0``/``ds_max``/``ds_min``: first, largest and smallest arclength step; ``max_steps``:
-    predictor–corrector steps per branch; ``corrector_tol``/``final_tol``: Newton update size
-    for convergence on the curve / at the end; ``residual_tol``: residual accepted as converged
-    (rounding floor); ``residual_bound``: largest residual accepted with a tiny update;
-    ``noise_floor``: update size treated as converged when Newton stagnates; ``max_correction``:
-    largest first corrector update (guards against jumping to another branch);
-    ``contraction``: required ratio of successive Newton updates; ``fold_refine``: secant
-    steps locating a fold.
+    All quantities are dimensionless, in the scaled units of :mod:`flexkin.cosserat.system`
+    (unknowns O(1), tau in [0, 1]); update sizes and residuals are max-norms.
+
+    Attributes
+    ----------
+    ds0 : float
+        First arclength step along the curve in (z, tau).
+    ds_max : float
+        Largest arclength step.
+    ds_min : float
+        Smallest arclength step; the branch fails ("step size underflow") below it.
+    max_steps : int
+        Predictor–corrector steps per branch before it is declared stalled.
+    corrector_tol : float
+        Newton update size for convergence of the corrector on the curve.
+    final_tol : float
+        Newton update size for convergence with tau fixed (the start and the end of a branch).
+    residual_bound : float
+        Largest residual accepted together with an update below the tolerance (or at the
+        noise floor).
+    residual_tol : float
+        Residual accepted as converged whatever the update (the rounding floor).
+    noise_floor : float
+        Update size treated as converged when Newton stagnates (the integration's noise).
+    max_corrector_iter : int
+        Newton iterations of the corrector per step.
+    max_final_iter : int
+        Newton iterations with tau fixed.
+    max_correction : float
+        Largest first corrector update (and largest final landing correction) accepted:
+        guards against jumping to another branch; the step size aims at a quarter of it.
+    contraction : float
+        Required ratio of successive Newton updates; a slower decrease is stagnation.
+    fold_refine : int
+        Secant steps locating a fold (the zero of the tangent's tau component).
     """
 
     ds0: float = 1.0

@@ -17,12 +17,41 @@ def _deg(a: float | None) -> float | None:
 class RefinedRod:
     """One rod of a refined equilibrium (SI; SPEC §2 conventions).
 
-    ``base_force``/``base_moment`` are n(0), m(0): the force and moment the rod (0, L] exerts
-    at its clamp end (the clamp applies their opposites); ``tip_force``/``tip_moment`` are
-    n(L), m(L): applied ON the rod tip BY the platform.  ``energy`` is the elastic energy,
-    ``load_potential`` the potential ``-int f . p ds`` of the distributed load, ``elongation``
-    ``int (v_x - 1) ds``; the strains are maxima of ``|v_x - 1|`` and ``|v_y|``; ``mode`` the
-    d-mode (1 + sign changes of the bending moment inside the rod).
+    Attributes
+    ----------
+    clamp : tuple of 2 floats
+        Clamp point, world frame (m).
+    clamp_angle : float
+        Tangent angle at the clamp, world frame (rad).
+    length : float
+        Free (undeformed) length of the rod (m).
+    base_force : tuple of 2 floats
+        n(0): the force the rod (0, L] exerts at its clamp end, world frame (N); the clamp
+        applies its opposite.
+    base_moment : float
+        m(0): the moment the rod exerts at its clamp end (N m), counter-clockwise positive.
+    tip : tuple of 2 floats
+        Tip position, world frame (m).
+    tip_angle : float
+        Tangent angle at the tip, world frame (rad).
+    tip_force : tuple of 2 floats
+        n(L): the force applied ON the rod tip BY the platform, world frame (N).
+    tip_moment : float
+        m(L): the moment applied on the rod tip by the platform (N m; 0 for a pinned tip).
+    energy : float
+        Elastic energy (bending, extension and shear) of the rod (J).
+    load_potential : float
+        Potential ``-int f . p ds`` of the distributed load (J).
+    elongation : float
+        ``int (v_x - 1) ds``: the change of length by axial strain (m).
+    max_axial_strain : float
+        Largest ``|v_x - 1|`` along the rod (dimensionless).
+    max_shear_strain : float
+        Largest ``|v_y|`` along the rod (dimensionless).
+    mode : int
+        d-mode: 1 + sign changes of the bending moment strictly inside the rod (SPEC §2).
+    steps : int
+        Runge–Kutta steps the rod was integrated with (:mod:`flexkin.cosserat.rod`).
     """
 
     clamp: tuple[float, float]
@@ -60,36 +89,78 @@ class RefinedSolution:
 
     Attributes
     ----------
-    id : the Kirchhoff solution's id (:attr:`flexkin.Solution.id`, 1-based, the same as in the
+    id : int or None
+        The Kirchhoff solution's id (:attr:`flexkin.Solution.id`, 1-based, the same as in the
         IK/FK table and JSON; its 1-based position in the input when it has none), ``None``
         for a born solution.
-    status : ``"refined"`` (branch reached tau = 1), ``"fold"`` (the branch turned back at a
+    status : {"refined", "fold", "born", "unlisted", "failed"}
+        ``"refined"`` (branch reached tau = 1), ``"fold"`` (the branch turned back at a
         fold: the solution merged with another one and does not exist in the refined model),
         ``"born"`` (exists only in the refined model: its branch, followed down in tau, turns at
         a fold instead of reaching the Kirchhoff model), ``"unlisted"`` (found by the fold
         multi-start and connected to a Kirchhoff solution that was not in the input) or
         ``"failed"`` (continuation stalled; ``note`` says where).
-    reached : the refined solution exists (status refined / born / unlisted).
-    tau_end : tau where the branch ended (1 when reached; the fold's tau for ``"fold"``).
-    fold_tau : tau of the first fold met (``None`` without fold); for ``"born"`` the birth tau.
-    merged_with : id of the input solution this branch met at its fold (``"fold"``); for a born
+    reached : bool
+        The refined solution exists (status refined / born / unlisted).
+    tau_end : float
+        Homotopy parameter tau where the branch ended (dimensionless; 1 when reached, the
+        fold's tau for ``"fold"``).
+    fold_tau : float or None
+        tau of the first fold met (``None`` without fold); for ``"born"`` the birth tau.
+    merged_with : int or None
+        Id of the input solution this branch met at its fold (``"fold"``); for a born
         solution, the 1-based position in ``born`` of the one forming its pair; ``None`` when
         unknown / not applicable.
-    pose, inputs : refined pose (m, m, rad) and inputs (SI); ``None`` unless reached.
-    kirchhoff_pose, kirchhoff_inputs : the starting Kirchhoff values (``None`` for born).
-    position_shift : |P_refined - P_Kirchhoff| (m); rotation_shift_deg : theta change (deg);
-    input_shift : per-leg input change (m, or deg for revolute legs).  ``None`` unless both exist.
-    rods : three :class:`RefinedRod` (empty unless reached).
-    stable : tri-state stability with the actuators locked in the refined model;
-    stability_margin : smallest eigenvalue of the discretised second variation (dimensionless,
-    :mod:`flexkin.cosserat.stability`), stability_error its discretisation error,
-    stability_index the Morse index, stability_note why ``stable`` is None.
-    kirchhoff_stable : the input's Kirchhoff verdict, for comparison.
-    residual : scaled max-norm residual of the 12 equations at the solution;
-    verification_residual : the same, re-integrated with twice the Runge–Kutta steps;
-    verified : ``verification_residual <= 1e-8``.
-    energy, load_potential : totals over the rods (J).
-    continuation_steps, evaluations : work done on this branch.  note : diagnostics.
+    pose : tuple of 3 floats or None
+        Refined pose ``(x, y, theta)`` (m, m, rad); ``None`` unless reached.
+    inputs : tuple of 3 floats or None
+        Refined inputs (SI: m, or rad for revolute legs); ``None`` unless reached.
+    kirchhoff_pose, kirchhoff_inputs : tuple of 3 floats or None
+        The starting Kirchhoff pose and inputs, same units (``None`` for born).
+    position_shift : float or None
+        ``|P_refined - P_Kirchhoff|`` (m); ``None`` unless both exist.
+    rotation_shift_deg : float or None
+        Change of the platform angle theta, refined minus Kirchhoff (deg); ``None`` unless
+        both exist.
+    input_shift : tuple of 3 floats or None
+        Per-leg input change, refined minus Kirchhoff (m, or deg for revolute legs); ``None``
+        unless both exist.
+    rods : tuple of RefinedRod
+        The three rods (empty unless reached).
+    stable : bool or None
+        Stability with the actuators locked in the refined model; ``None`` when not resolved
+        or not computed (``stability_note`` says why).
+    stability_margin : float or None
+        Smallest eigenvalue of the discretised second variation, Richardson-extrapolated from
+        two meshes (dimensionless, :mod:`flexkin.cosserat.stability`).
+    stability_error : float or None
+        Estimated discretisation error of ``stability_margin`` (same scale).
+    stability_index : int or None
+        Morse index: the number of negative eigenvalues on the finer mesh.
+    stability_note : str
+        Why ``stable`` is ``None`` (empty otherwise).
+    kirchhoff_stable : bool or None
+        The input's Kirchhoff verdict, for comparison.
+    residual : float or None
+        Scaled max-norm residual of the shooting equations (platform equilibrium, tips on
+        the platform, segment matching; dimensionless) at the solution.
+    verification_residual : float or None
+        The same, re-integrated with twice the Runge–Kutta steps.
+    verified : bool
+        ``verification_residual <= 1e-8``.
+    energy : float or None
+        Elastic energy of the three rods (J).
+    load_potential : float or None
+        Potential of the distributed loads summed over the rods (J).
+    continuation_steps : int
+        Predictor–corrector steps taken on this branch.
+    evaluations : int
+        Evaluations of the shooting residual with its Jacobian spent on this branch.
+    note : str
+        Diagnostics of the branch (a possible branch jump, folds passed, why it failed).
+    position : int or None
+        0-based position of the Kirchhoff solution in the input (``None`` for born ones);
+        backs the deprecated :attr:`index`.
     """
 
     id: int | None
@@ -177,12 +248,32 @@ class RefineResult:
 
     Attributes
     ----------
-    problem : ``"ik"`` or ``"fk"``.  mechanism : the mechanism.  load : (Fx, Fy, Mz).
-    gravity : the gravity vector used (m/s^2) or ``None``.  params : per-leg CosseratParams.
-    line_loads : per-leg distributed force (N/m) at tau = 1.
-    solutions : one :class:`RefinedSolution` per input solution, in input order.
-    born : solutions found by the multi-start around folds (status ``"born"`` / ``"unlisted"``).
-    message : one line summary.  elapsed : seconds.  diagnostics : counts.
+    problem : {"ik", "fk"}
+        The kinematics problem of the input solutions (pose or inputs held).
+    mechanism : Mechanism
+        The mechanism.
+    load : tuple of 3 floats
+        Load wrench ``(Fx, Fy, Mz)`` on the platform at P (N, N, N m).
+    gravity : tuple of 2 floats or None
+        The gravity vector used, world frame (m/s^2), or ``None``.
+    params : tuple of CosseratParams
+        Per-leg extension, shear and distributed-load data (SI).
+    line_loads : tuple of (float, float)
+        Per-leg distributed force at tau = 1, world frame (N/m): weight plus the
+        ``distributed_load`` of the params and of the call.
+    solutions : tuple of RefinedSolution
+        One per input solution, in input order.
+    born : tuple of RefinedSolution
+        Solutions found by the multi-start around folds (status ``"born"`` / ``"unlisted"``).
+    message : str
+        One-line summary.
+    elapsed : float
+        Wall-clock time of the call, s.
+    diagnostics : dict
+        Counts: ``evaluations`` and ``batched_rounds`` of the shooting kernel,
+        ``reruns_for_jumping`` (branches re-run with small steps), ``multistart_starts``, and
+        per input solution the Runge–Kutta steps ``rk_steps`` and shooting ``segments`` of
+        each rod.
     """
 
     problem: str

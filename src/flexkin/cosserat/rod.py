@@ -49,16 +49,29 @@ MAX_STEPS = 20000
 class ShootResult:
     """Tip state of a batch of rods (leading shape ``batch``), SPEC §2 conventions.
 
+    The properties ``tip``, ``tip_angle``, ``tip_force`` and ``tip_moment`` are views of
+    ``state``.
+
     Attributes
     ----------
-    state : (..., 6) ``(x, y, th, n_x, n_y, m)`` at ``s = L``.
-    tip, tip_angle, tip_force, tip_moment : views of ``state``.
-    energy : elastic energy (J).  load_potential : ``-tau int f . p ds`` (J).
-    elongation : ``int (v_x - 1) ds`` (m).
-    d_start : (..., 6, 6) ``d state(L) / d state(0)``, columns ``(x0, y0, th0, n_x0, n_y0, m0)``
-        (``None`` without ``jacobian=True``).
-    d_length, d_tau : (..., 6) derivatives w.r.t. the free length L and tau (``None`` likewise).
-    steps : (...) Runge–Kutta steps used.
+    state : ndarray (..., 6)
+        ``(x, y, th, n_x, n_y, m)`` at ``s = L``: tip position (m, world), material angle
+        (rad), force on the tip by the platform (N, world) and moment on the tip (N m).
+    energy : ndarray (...)
+        Elastic energy of the rod (J; module docstring).
+    load_potential : ndarray (...)
+        Potential of the distributed load ``-tau int f . p ds`` (J).
+    elongation : ndarray (...)
+        ``int (v_x - 1) ds`` (m).
+    d_start : ndarray (..., 6, 6) or None
+        ``d state(L) / d state(0)``, columns ``(x0, y0, th0, n_x0, n_y0, m0)`` (in the SI
+        units of the rows over those of the columns; ``None`` without ``jacobian=True``).
+    d_length : ndarray (..., 6) or None
+        ``d state(L) / d L`` (per m; ``None`` without ``jacobian=True``).
+    d_tau : ndarray (..., 6) or None
+        ``d state(L) / d tau`` (tau dimensionless; ``None`` without ``jacobian=True``).
+    steps : ndarray (...) of int
+        Runge–Kutta steps used.
     """
 
     state: NDArray[np.float64]
@@ -91,13 +104,29 @@ class ShootResult:
 class RodShape:
     """A rod sampled at ``n`` points uniformly spaced in the reference arc length.
 
+    Every array has the batch's leading shape ``...`` (none for one rod), then ``n``.
+
     Attributes
     ----------
-    s : (n,) reference arc length (m) (per rod: ``(..., n)``).
-    points : (..., n, 2) centre line (m).  theta : (..., n) material angle (rad).
-    force : (..., n, 2) internal force n(s) (N, world).  moment : (..., n) m(s) (N m).
-    axial_strain, shear_strain : (..., n) ``v_x - 1`` and ``v_y``.
-    energy, load_potential, elongation : (..., n) running integrals from the clamp.
+    s : ndarray (..., n)
+        Reference (undeformed) arc length of the samples, from the clamp (m).
+    points : ndarray (..., n, 2)
+        Centre line, world frame (m).
+    theta : ndarray (..., n)
+        Material angle th: direction of the cross-section's axis d1 (the tangent when the rod
+        is unsheared), world frame (rad).
+    force : ndarray (..., n, 2)
+        Internal force n(s), world frame (N): the force the part (s, L] exerts on [0, s].
+    moment : ndarray (..., n)
+        Internal (bending) moment m(s) (N m), counter-clockwise positive.
+    axial_strain, shear_strain : ndarray (..., n)
+        ``v_x - 1`` and ``v_y`` (dimensionless).
+    energy : ndarray (..., n)
+        Elastic energy from the clamp to ``s`` (J).
+    load_potential : ndarray (..., n)
+        Potential of the distributed load from the clamp to ``s`` (J).
+    elongation : ndarray (..., n)
+        ``int_0^s (v_x - 1) ds`` (m).
     """
 
     s: NDArray[np.float64]

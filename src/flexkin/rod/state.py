@@ -42,18 +42,37 @@ class RodState:
         force in the rod's local (clamp) frame.
     length, EI : float
         Free length (m) and bending stiffness (N m^2).
-    clamp, clamp_angle : clamp point (world, m) and tangent angle (rad).
-    tip, tip_angle : tip position (world, m) and tangent angle at the tip (rad).
-    tip_force : force applied on the rod tip by the platform, world frame (N).
-    base_moment : ``EI theta'(0)`` (N m), counter-clockwise positive.
-    tip_moment : ``EI theta'(L)``, the moment on the rod tip by the platform (N m; 0 if pinned).
-    energy : bending energy (J).
-    chart, coords : the chart (:mod:`flexkin.rod.kernels`) and coordinates the rod is known in.
-    joint : ``"pinned"`` or ``"clamped"``.
+    clamp : tuple of 2 floats
+        Clamp point, world frame (m).
+    clamp_angle : float
+        Tangent angle at the clamp, world frame (rad).
+    tip : tuple of 2 floats
+        Tip position, world frame (m).
+    tip_angle : float
+        Tangent angle at the tip, world frame (rad).
+    tip_force : tuple of 2 floats
+        Force applied on the rod tip by the platform, world frame (N).
+    base_moment : float
+        ``EI theta'(0)`` (N m), counter-clockwise positive.
+    energy : float
+        Bending energy (J).
+    tip_moment : float
+        ``EI theta'(L)``, the moment on the rod tip by the platform (N m; 0 if pinned).
+    chart : int
+        The chart the rod is known in (:mod:`flexkin.rod.kernels`: unified, seam or wrench).
+    coords : tuple of float
+        The rod's coordinates in that chart (2 for a pinned rod, 3 for the wrench chart;
+        dimensionless, unit rod).
+    joint : {"pinned", "clamped"}
+        How the tip is joined to the platform.
     mode_boundary : bool
         The base moment vanishes to within the solver's resolution (an inflection at the
         clamp): the rod sits on the boundary between d-modes ``mode`` and ``mode + 1`` and
         carries the lower label (SPEC §2).
+    extra : dict
+        Free-form annotations a caller may attach; empty by default.  flexkin itself neither
+        fills nor reads it, it takes no part in comparisons and is not written by
+        :meth:`to_dict`.
     """
 
     mode: int

@@ -76,16 +76,54 @@ class PathEvent:
 class PathResult(Result):
     """One IK solution followed along a straight path of poses.
 
-    Array attributes have one row per reached sample: ``t`` (k,), ``poses`` (k, 3) (rad),
-    ``inputs`` (k, 3) (SI, continuous), ``modes`` (k, 3), ``stable`` (k,; samples whose
-    stability is undecided count as not stable), ``margin`` (k,), ``det_ik``, ``det_fk``, ``cond`` (k,) (Eq. 16,
-    dimensionless; non-finite at singularities), ``sing_ik``, ``sing_fk`` (k,) the
-    singularity measures (:mod:`flexkin.analysis.jacobian`: dimensionless, scale-free, in
-    [-1, 1], smooth along the branch, zero at IK / FK singularities), ``x`` and ``charts`` the
-    system's unknowns.  ``complete`` is ``True`` when the end of the path was reached (never
-    when a time budget ran out).  ``feasibility`` holds one
-    :class:`~flexkin.analysis.feasibility.Feasibility` per sample when :func:`follow_path`
-    computed them (``feasibility=True``), else it is empty.
+    The array attributes have one row per reached sample (``k`` rows).  ``complete`` is
+    ``True`` when the end of the path was reached (never when a time budget ran out); the
+    other fields ``solutions`` (empty), ``message``, ``elapsed`` and ``diagnostics`` are those
+    of :class:`~flexkin.results.Result`.
+
+    Attributes
+    ----------
+    mechanism : Mechanism
+        The mechanism followed.
+    start, end : tuple of 3 floats
+        The end poses ``(x, y, theta)`` of the straight path (m, m, rad).
+    load : tuple of 3 floats
+        Load wrench ``(Fx, Fy, Mz)`` on the platform at P (N, N, N m).
+    t : ndarray (k,)
+        Path parameter of each sample, in [0, 1] (dimensionless; pose ``(1 - t) start + t end``).
+    poses : ndarray (k, 3)
+        Platform pose ``(x, y, theta)`` of each sample (m, m, rad).
+    inputs : ndarray (k, 3)
+        Actuator inputs (SI: m for prismatic and length legs, rad for revolute legs),
+        continuous along the branch (revolute inputs are not wrapped).
+    modes : ndarray (k, 3) of int
+        d-mode of each rod at each sample (SPEC §2).
+    stable : ndarray (k,) of bool
+        Closed-form stability verdict (:mod:`flexkin.analysis.stability`); samples whose
+        stability is undecided count as not stable.
+    margin : ndarray (k,)
+        Stability margin: smallest eigenvalue of the dimensionless second variation (positive
+        iff stable).
+    det_ik, det_fk : ndarray (k,)
+        Determinants of ``J_IK`` and ``J_FK`` (Eq. 16; dimensionless: lengths in ``L_ref``,
+        angles in rad); ``inf`` where the Jacobian does not exist.
+    cond : ndarray (k,)
+        2-norm condition number of ``J_FK`` (dimensionless); ``inf`` where it does not exist.
+    sing_ik, sing_fk : ndarray (k,)
+        The singularity measures (:mod:`flexkin.analysis.jacobian`: dimensionless,
+        scale-free, in [-1, 1], smooth along the branch, zero at IK / FK singularities).
+    x : ndarray (k, n_unknowns)
+        The equation system's unknowns at each sample (:class:`flexkin.system.Layout`).
+    charts : ndarray (k, 3) of int
+        The rods' charts at each sample (:mod:`flexkin.rod.kernels`).
+    events : tuple of PathEvent
+        Singularities, stability changes, d-mode changes, bridged chart seams and the end of
+        the branch, in order of ``t``.
+    start_solution : Solution or None
+        The IK solution at ``start`` that was followed (``None`` when none was found).
+    feasibility : tuple of Feasibility
+        One :class:`~flexkin.analysis.feasibility.Feasibility` per sample when
+        :func:`follow_path` computed them (``feasibility=True``), else empty.
     """
 
     mechanism: Any = field(default=None, repr=False)

@@ -116,8 +116,33 @@ _INDEX_METRICS = frozenset(f"{s}_{n}" for n in ("cond", "force_stiffness", "mome
 class DesignTask:
     """One row to compute: a design (its grid values and mechanism dict) at one orientation.
 
-    ``mechanism`` is the design's mechanism file content (degrees), ``workspace`` the
-    workspace settings (already scaled for the design), ``key`` identifies the result.
+    Built by :meth:`flexkin.study.spec.StudySpec.tasks`, one per (design, orientation), in row
+    order.
+
+    Attributes
+    ----------
+    index : int
+        0-based position of the task (the row) in the study.
+    design : int
+        0-based number of the design on the grid (the first grid key varies slowest).
+    params : tuple of (str, float)
+        The design's grid values by dotted key (:mod:`flexkin.study.grid`), in the study
+        file's units (m, deg, Pa, N m^2, N, N m; dimensionless for scales and strains).
+    theta_deg : float
+        Platform orientation of the constant-orientation workspace (deg).
+    mechanism : mapping
+        The design's mechanism file content (the TOML tables as a dict; angles in degrees).
+    source : str
+        A label naming the design and its base mechanism file, used in error messages.
+    workspace : mapping
+        The workspace settings (seed, step, bounds, max_mode, ...; lengths in m), already
+        scaled for the design.
+    metrics : tuple of str
+        The metric columns to compute (keys of :data:`METRICS`).
+    key : str
+        Content hash (24 hex digits) of the row version, mechanism, orientation, workspace
+        settings and metrics: identifies the result in the store, so identical rows are
+        computed once and reused across runs.
     """
 
     index: int
