@@ -68,7 +68,7 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..results import finite_or_none
+from ..core.jsonable import finite_or_none
 from ..system import System
 
 __all__ = ["Indices", "IndexArrays", "index_arrays", "performance_indices", "peak_curvature",

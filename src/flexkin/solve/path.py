@@ -34,7 +34,8 @@ from ..analysis.stability import StabilityArrays, mechanism_stability
 from ..core.budget import Deadline, Rate
 from ..core.validation import as_triple, check_count, check_max_mode
 from ..io.progress import Progress, substage
-from ..results import Result, Solution, finite_or_none
+from ..core.jsonable import finite_or_none
+from ..results import Result, Solution
 from ..system import System
 from .continuation import SEAM_V, continue_ik
 from .finish import rod_modes
