@@ -35,7 +35,8 @@ import numpy as np
 from .core.jit import njit
 from numpy.typing import NDArray
 
-from .mechanism.joints import CLAMPED
+from .mechanism.joints import CLAMPED, JOINTS
+from .rod.state import RodState
 from .core.geometry2d import platform_points, rotate
 from .rod.kernels import (CHART_DIM, CHART_UNIFIED, CHART_WRENCH, EN, FX, FY, M0, ML, NQ, TH, X, Y, eval_rod,
                           eval_rods)
@@ -226,6 +227,36 @@ class System:
             "tip_moment": EI / L * q[..., ML],
             "energy": EI / L * q[..., EN],
         }
+
+    def rods(self, X: NDArray, charts: NDArray, modes: NDArray | None = None) -> list[tuple[RodState, ...]]:
+        """The rods of every row of ``X`` as :class:`~flexkin.rod.state.RodState` objects.
+
+        Parameters
+        ----------
+        X : (n, n_unknowns) ndarray
+            Equilibria (or candidates).
+        charts : (n, 3) ndarray
+            Their rods' charts.
+        modes : (n, 3) ndarray, optional
+            The rods' d-modes (e.g. :func:`flexkin.solve.finish.rod_modes`); 0 when not given
+            (the shapes, curvatures and contacts do not need them).
+
+        Returns
+        -------
+        list of tuple of 3 RodState
+            One triple per row.
+        """
+        X = np.atleast_2d(X)
+        charts = np.asarray(charts, dtype=np.int64).reshape(len(X), 3)
+        modes = np.zeros((len(X), 3), np.int64) if modes is None else np.asarray(modes).reshape(len(X), 3)
+        names = {cls.code: cls.name for cls in JOINTS.values()}
+        q, _ = self.unit_rods(X, charts)
+        lay = self.layout
+        A, alpha, L = self.clamps(X[:, lay.inputs])
+        return [tuple(RodState.from_unit(q[j, i], int(charts[j, i]), X[j, lay.rod[i]], L[j, i], self.EI[i],
+                                         A[j, i], alpha[j, i], int(modes[j, i]), names[int(self.joint[i])])
+                      for i in range(3))
+                for j in range(len(X))]
 
     # ---- evaluation ---------------------------------------------------------------------
     def args(self) -> tuple:

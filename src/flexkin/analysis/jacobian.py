@@ -48,6 +48,7 @@ angles and revolute inputs in radians; so ``J_IK`` maps ``(drho / L_ref or dphi)
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray

@@ -7,7 +7,7 @@ Procedure (paper §4.1-4.2, made global):
 2. every triple of curve points in platform equilibrium with the load (Eq. 15), found by
    subdivision over the three polylines in wrench space (:mod:`flexkin.solve.equilibrium`);
 3. the Newton corrector on the full equation system (:mod:`flexkin.solve.corrector`) to a
-   scaled residual <= :data:`RESIDUAL_TOL`, then one solution per equilibrium, stability and
+   scaled residual <= :data:`~flexkin.solve.corrector.RESIDUAL_TOL`, then one solution per equilibrium, stability and
    Jacobians (:mod:`flexkin.solve.finish`), sorted by (d-modes, energy).
 """
 
@@ -20,28 +20,22 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.budget import Deadline
-from ..core.validation import as_triple, check_max_mode
+from ..core.validation import as_load, as_triple, check_max_mode
 from ..io.progress import Progress, substage
 from ..results import IKDiagnostics, KinematicsResult, Solution
 from ..system import System
 from .curves import leg_curves
 from .equilibrium import equilibrium_triples
 from .finish import SCOPE_MESSAGE, finish_solutions
+from .corrector import RESIDUAL_TOL
 from .sliced import newton_within
 
-__all__ = ["ik", "refine_ik", "RESIDUAL_TOL", "as_load"]
+__all__ = ["ik", "refine_ik"]
 
-#: acceptance threshold on the scaled residual of a refined solution
-RESIDUAL_TOL = 1e-10
 #: seconds reserved per equilibrium-triple candidate for its refinement and analysis, while the
 #: search runs under a time budget (a pinned IK candidate costs ~0.1 ms to refine, a solution
 #: ~1-2 ms to build; candidates outnumber solutions)
 CANDIDATE_COST = 3e-4
-
-
-def as_load(mech, load: ArrayLike | None) -> NDArray[np.float64]:
-    """The load wrench: ``load`` if given, else the mechanism file's ``[load]``."""
-    return as_triple(mech.load if load is None else load, "load (Fx, Fy, Mz)")
 
 
 def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *,
