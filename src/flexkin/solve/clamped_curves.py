@@ -31,7 +31,7 @@ from ..rod.slots import EN, FX, FY, ML, NQ, TH, X, Y
 from ..rod.wrench import wrench_eval, wrench_mode
 from ..rod.wrench_atlas import get_wrench_atlas, lambda_max, moment_scale, turning_max
 from .conditions import condition_eval
-from .curves import LegCurve
+from .leg_curve import LegCurve
 
 __all__ = ["clamped_leg_curve"]
 
