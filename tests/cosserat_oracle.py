@@ -296,7 +296,7 @@ def cantilever(L, EI, EA, kGA, q=(0.0, 0.0), tip_force=(0.0, 0.0), clamp_angle=0
 
     Load-stepped Newton (minimisation: the cantilever's equilibrium is a minimum).
     """
-    rod = OracleRod(clamp=(0.0, 0.0), clamp_angle=clamp_angle, length=L, EI=EI, EA=EA, kGA=kGA, load=q)
+    OracleRod(clamp=(0.0, 0.0), clamp_angle=clamp_angle, length=L, EI=EI, EA=EA, kGA=kGA, load=q)  # validates the arguments
     h = L / N
     X = np.stack([np.arange(N + 1) * h * np.cos(clamp_angle), np.arange(N + 1) * h * np.sin(clamp_angle)], -1)
     phi = np.full(N, clamp_angle)

@@ -7,7 +7,7 @@
   the KKT system, shift-invert) gives the constrained eigenvalues of the dense pencil on an
   orthonormal null-space basis from :func:`scipy.linalg.null_space`, also when the
   constraints lose rank;
-* the curve snapping of :mod:`flexkin.solve.curves` (Newton with the analytic gradient) lands on
+* the curve snapping of :mod:`flexkin.solve.pinned_curves` (Newton with the analytic gradient) lands on
   the level set of the closed-form tip (:func:`flexkin.rod.closed_form.tip_chart`).
 """
 
@@ -22,7 +22,7 @@ from scipy.linalg import null_space
 from flexkin.mechanism.actuators import COND_CIRCLE, COND_LINE
 from flexkin.rod.closed_form import tip_chart
 from flexkin.rod.kernels import CHART_UNIFIED
-from flexkin.solve.curves import _snap
+from flexkin.solve.pinned_curves import _snap
 from flexkin.solve.equilibrium import equilibrium_triples
 
 

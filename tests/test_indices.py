@@ -19,10 +19,9 @@ import numpy as np
 import pytest
 
 import flexkin
-from flexkin.analysis.indices import (index_arrays, performance_indices, singularity_distance_along_path,
-                                      singularity_distance_map)
+from flexkin.analysis.indices import index_arrays, performance_indices, singularity_distance_along_path
 from flexkin.mechanism import mechanism_from_dict, symmetric_mechanism
-from flexkin.solve.workspace import FAILED, REACHED, SEAM, UNSTABLE
+from flexkin.solve.workspace import FAILED, REACHED, SEAM, UNSTABLE, singularity_distance_map
 
 
 def _stable(res):

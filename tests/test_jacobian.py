@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import flexkin
-from flexkin.solve.ik import refine
+from flexkin.solve.finish import refine
 from flexkin.system import System
 
 CASES = [("unit_3pfr.toml", (0.05, 0.02, 0.35)), ("unit_3rfr.toml", (0.05, -0.03, 0.2)),

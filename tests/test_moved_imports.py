@@ -87,3 +87,18 @@ def test_the_changelog_lists_every_moved_path():
     text = (ROOT / "CHANGELOG.md").read_text()
     for old in list(MOVED) + list(PACKAGES):
         assert f"`{old}`" in text, old
+
+
+def test_the_rod_solver_names_of_flexkin_rod_warn_and_are_the_new_ones():
+    """``flexkin.rod.solve_rod`` and ``RodInverseResult`` moved to :mod:`flexkin.solve.rod_inverse`
+    (issue 29: the rod package is the closed form only); the old names warn until REMOVED_IN."""
+    import flexkin
+    import flexkin.rod
+
+    for name in ("solve_rod", "RodInverseResult"):
+        with pytest.warns(FutureWarning, match=f"flexkin.rod.{name} moved to flexkin.solve.rod_inverse") as rec:
+            old = getattr(flexkin.rod, name)
+        assert old is getattr(flexkin, name)
+        assert f"removed in flexkin {REMOVED_IN}" in str(rec[0].message)
+    with pytest.raises(AttributeError):
+        flexkin.rod.no_such_name

@@ -1,4 +1,4 @@
-"""Single-rod inverse problem (``flexkin.rod.solve_rod``) against independent oracles.
+"""Single-rod inverse problem (``flexkin.solve_rod``) against independent oracles.
 
 * every returned equilibrium is re-integrated from the clamp with the ODE (Eqs. 5, 7) using
   only its tip force and base moment: it must reach the tip point with zero tip moment, with
@@ -19,7 +19,7 @@ import pytest
 from scipy.optimize import brentq
 
 from flexkin.rod import atlas as _atlas
-from flexkin.rod import solve_rod
+from flexkin import solve_rod
 from oracles import count_inflections, integrate_rod, report, shooting_multistart
 
 TWO_PI = 2.0 * np.pi

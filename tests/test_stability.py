@@ -17,7 +17,7 @@ import flexkin
 from flexkin.analysis.stability import output_stiffness, rod_stability
 from flexkin.system import System
 from flexkin.rod.closed_form import tip_chart
-from flexkin.rod.inverse import refine_rod
+from flexkin.solve.rod_inverse import refine_rod
 from flexkin.rod.state import RodState
 
 CANTILEVER = np.pi**2 / 4

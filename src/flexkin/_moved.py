@@ -39,6 +39,8 @@ MOVED: dict[str, tuple[str, str]] = {
     "flexkin.kinematics.results": ("flexkin.results", "0.2.0"),
     "flexkin.kinematics.system": ("flexkin.system", "0.2.0"),
     "flexkin.workspace": ("flexkin.solve.workspace", "0.2.0"),
+    "flexkin.rod.inverse": ("flexkin.solve.rod_inverse", "0.3.0"),
+    "flexkin.rod.sweep": ("flexkin.solve.rod_sweep", "0.3.0"),
 }
 #: old package -> (where its names are now, the names it exported, release that moved it)
 PACKAGES: dict[str, tuple[str, tuple[str, ...], str]] = {

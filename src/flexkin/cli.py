@@ -438,15 +438,15 @@ def _rod_EI(a) -> float:
                            f"outside the supported range [{STIFFNESS_LIMITS[0]:g}, {STIFFNESS_LIMITS[1]:g}] N m^2")
         return EI
     if a.sweep and a.E is None and a.radius is None:
-        from .rod.sweep import FIG19
+        from .solve.rod_sweep import FIG19
 
         return FIG19["E"] * math.pi * FIG19["radius"] ** 4 / 4.0
     raise CLIError("flexkin rod: the bending stiffness is missing: give --EI, or --E and --radius")
 
 
 def _cmd_rod(a) -> int:
-    from .rod import solve_rod
-    from .rod.sweep import FIG19, rod_sweep
+    from .solve.rod_inverse import solve_rod
+    from .solve.rod_sweep import FIG19, rod_sweep
 
     EI = _rod_EI(a)
     if a.sweep:

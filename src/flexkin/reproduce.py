@@ -363,7 +363,7 @@ def _section_rod(rep: _Report) -> dict[str, float]:
     """1. The rod model against an ODE integration, and Fig. 19."""
     from .mechanism.model import circular_EI
     from .plot.rod import plot_rod_sweep
-    from .rod.sweep import FIG19, rod_sweep
+    from .solve.rod_sweep import FIG19, rod_sweep
 
     rc = _rod_check(8 if rep.quick else 24)
     rep.tick("rod model")
@@ -400,7 +400,7 @@ def _section_parameter_space(rep: _Report) -> None:
 
 def _section_curves(rep: _Report, proto) -> None:
     """3. The geometric-condition curves of the prototype (Fig. 7)."""
-    from . import ik
+    from .solve.ik import ik
     from .plot.curves import plot_curves
 
     r90 = ik(proto, (0.0, 0.0, np.radians(90)), load=(0, 0, 0))
@@ -414,7 +414,8 @@ def _section_curves(rep: _Report, proto) -> None:
 
 def _section_ik_cases(rep: _Report, ex: Path, pose: tuple[float, float, float]) -> dict[str, dict[str, int]]:
     """4. Full IK of the three case studies (Figs. 10–15); the solution counts by d-modes."""
-    from . import ik, load_mechanism
+    from .mechanism import load_mechanism
+    from .solve.ik import ik
     from .plot.solutions import write_solution_pages
 
     counts: dict[str, dict[str, int]] = {}
@@ -442,7 +443,8 @@ def _section_ik_cases(rep: _Report, ex: Path, pose: tuple[float, float, float]) 
 
 def _section_fk(rep: _Report, rfr, pose: tuple[float, float, float]) -> dict[str, int]:
     """5. Full FK of the 3-RFR at the inputs of its first IK solution (Fig. 16)."""
-    from . import fk, ik
+    from .solve.fk import fk
+    from .solve.ik import ik
     from .plot.solutions import write_solution_pages
 
     base = ik(rfr, pose, load=(0, 0, 0))
@@ -483,7 +485,8 @@ def _section_workspace(rep: _Report, rfr) -> None:
 
 def _section_tables(rep: _Report, proto) -> tuple[Any, list[dict[str, Any]], list[dict[str, Any]]]:
     """7. Tables 1 and 2 (theory columns); the FK result of Table 1 and the rows of both."""
-    from . import fk, ik
+    from .solve.fk import fk
+    from .solve.ik import ik
 
     r1 = fk(proto, (0.025, 0.025, 0.025), load=(0, 0, 0))
     table1 = []
@@ -549,7 +552,7 @@ def reproduce(out: str | Path = "flexkin_report", quick: bool = False,
     import matplotlib
 
     matplotlib.use("Agg")
-    from . import load_mechanism
+    from .mechanism import load_mechanism
 
     t0 = time.perf_counter()
     out = Path(out)

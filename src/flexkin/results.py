@@ -18,83 +18,30 @@ from typing import TYPE_CHECKING, Any, Iterator
 import numpy as np
 from numpy.typing import NDArray
 
+from .core.jsonable import finite_or_none
+
 if TYPE_CHECKING:
+    from .analysis.jacobian import Jacobians
+    from .analysis.stability import Stability
     from .analysis.indices import Indices
     from .rod.state import RodState
 
 __all__ = ["Stability", "Jacobians", "Solution", "Result", "KinematicsResult", "IKDiagnostics",
            "FKDiagnostics", "finite_or_none", "fill_margins"]
 
-
-def finite_or_none(v: Any) -> float | None:
-    """``float(v)`` if finite, else ``None`` (the JSON contract never carries NaN)."""
-    if v is None:
-        return None
-    v = float(v)
-    return v if np.isfinite(v) else None
+#: names defined in a lower layer and re-exported here for users, imported on first use (PEP 562)
+#: so that ``import flexkin.results`` stays cheap (the analysis modules load the compiled kernels)
+_REEXPORTED = {"Stability": "flexkin.analysis.stability", "Jacobians": "flexkin.analysis.jacobian"}
 
 
-def _matrix(a: NDArray | None) -> list[list[float]] | None:
-    return None if a is None or not np.all(np.isfinite(a)) else np.asarray(a).tolist()
+def __getattr__(name: str) -> Any:
+    if name in _REEXPORTED:
+        import importlib
 
-
-@dataclass(frozen=True)
-class Stability:
-    """Stability of an equilibrium with the actuators locked (paper §4.3).
-
-    Attributes
-    ----------
-    stable : bool or None
-        From the closed form (:mod:`flexkin.analysis.stability`); ``None`` where the closed form
-        is not conclusive and the smallest eigenvalue of the discretised second variation is
-        below the resolution the computation can guarantee (``note`` says why).
-    margin : float
-        Smallest eigenvalue of the dimensionless second variation; positive iff stable.
-        ``NaN`` until computed: :attr:`Solution.stability_margin` and :meth:`Solution.to_dict`
-        compute it on first use (``ik(..., margin=True)`` computes it up front).
-    index : int or None
-        Number of negative eigenvalues (unstable directions) where resolved.
-    resolution : float
-        The guaranteed resolution of ``margin`` (``NaN`` until computed).
-    note : str
-        Why the verdict is undecided, or ``""``.
-    """
-
-    stable: bool | None
-    margin: float
-    index: int | None
-    resolution: float = 0.0
-    note: str = ""
-
-
-@dataclass(frozen=True, eq=False)
-class Jacobians:
-    """Kinematic Jacobians of Eq. (16) at an equilibrium (:mod:`flexkin.analysis.jacobian`).
-
-    ``J_IK`` (``dx = J_IK drho``) and ``J_FK`` (``drho = J_FK dx``) are dimensionless: positions
-    and prismatic/length inputs in units of the mechanism's length scale ``L_ref``, angles in
-    radians.  ``None`` where the Jacobian does not exist (at an FK, resp. IK, singularity).
-    ``sing_ik``, ``sing_fk`` are the singularity measures (:mod:`flexkin.analysis.jacobian`):
-    dimensionless and scale-free, in [-1, 1], smooth along a branch and zero at IK and FK
-    singularities (``|sing_ik| = prod sigma_i / sqrt(1 + sigma_i^2)``, ``|sing_fk| =
-    prod 1 / sqrt(1 + sigma_i^2)`` with ``sigma_i`` the singular values of ``J_IK``).
-    """
-
-    J_IK: NDArray[np.float64] | None
-    J_FK: NDArray[np.float64] | None
-    det_ik: float
-    det_fk: float
-    cond: float
-    sing_ik: float
-    sing_fk: float
-    L_ref: float = 1.0
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready entry (SPEC §4); non-finite values are ``None``."""
-        return {"det_ik": finite_or_none(self.det_ik), "det_fk": finite_or_none(self.det_fk),
-                "cond": finite_or_none(self.cond), "J_IK": _matrix(self.J_IK), "J_FK": _matrix(self.J_FK),
-                "sing_ik": finite_or_none(self.sing_ik), "sing_fk": finite_or_none(self.sing_fk),
-                "units": f"dimensionless: lengths in L_ref = {self.L_ref:.6g} m, angles in rad"}
+        value = getattr(importlib.import_module(_REEXPORTED[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'flexkin.results' has no attribute {name!r}")
 
 
 @dataclass(frozen=True, eq=False)

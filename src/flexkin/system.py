@@ -16,7 +16,7 @@ Equations, all scaled to O(1), rows of the residual:
 * ``tip[i]``: what leg ``i``'s joint imposes at ``B_i = P + Rot(theta) b_i``: the tip position
   ``(A_i + L_i Rot(alpha_i) tip_unit - B_i) / L_ref`` (2; the rigid-body closure, equivalent to
   Eq. 17 once the pose is eliminated) and, for a clamped tip, its angle
-  ``wrap(alpha_i + theta_unit - theta - tip_angle_i)`` (1);
+  ``wrap_angle(alpha_i + theta_unit - theta - tip_angle_i)`` (1, into ``(-pi, pi]``);
 * ``force``, ``moment``: platform equilibrium (Eq. 15 with the sign of SPEC §2; the platform
   receives ``-n_i`` and ``-m_i(L)``): ``(sum n_i - F) / F_ref`` and
   ``(sum (B_i - P) x n_i + sum m_i(L) - M) / (F_ref L_ref)``.
@@ -35,8 +35,10 @@ import numpy as np
 from .core.jit import njit
 from numpy.typing import NDArray
 
-from .mechanism.joints import CLAMPED
+from .mechanism.joints import CLAMPED, JOINTS
+from .rod.state import RodState
 from .core.geometry2d import platform_points, rotate
+from .core.geometry2d_kernels import wrap_angle
 from .rod.kernels import (CHART_DIM, CHART_UNIFIED, CHART_WRENCH, EN, FX, FY, M0, ML, NQ, TH, X, Y, eval_rod,
                           eval_rods)
 
@@ -227,6 +229,36 @@ class System:
             "energy": EI / L * q[..., EN],
         }
 
+    def rods(self, X: NDArray, charts: NDArray, modes: NDArray | None = None) -> list[tuple[RodState, ...]]:
+        """The rods of every row of ``X`` as :class:`~flexkin.rod.state.RodState` objects.
+
+        Parameters
+        ----------
+        X : (n, n_unknowns) ndarray
+            Equilibria (or candidates).
+        charts : (n, 3) ndarray
+            Their rods' charts.
+        modes : (n, 3) ndarray, optional
+            The rods' d-modes (e.g. :func:`flexkin.solve.finish.rod_modes`); 0 when not given
+            (the shapes, curvatures and contacts do not need them).
+
+        Returns
+        -------
+        list of tuple of 3 RodState
+            One triple per row.
+        """
+        X = np.atleast_2d(X)
+        charts = np.asarray(charts, dtype=np.int64).reshape(len(X), 3)
+        modes = np.zeros((len(X), 3), np.int64) if modes is None else np.asarray(modes).reshape(len(X), 3)
+        names = {cls.code: cls.name for cls in JOINTS.values()}
+        q, _ = self.unit_rods(X, charts)
+        lay = self.layout
+        A, alpha, L = self.clamps(X[:, lay.inputs])
+        return [tuple(RodState.from_unit(q[j, i], int(charts[j, i]), X[j, lay.rod[i]], L[j, i], self.EI[i],
+                                         A[j, i], alpha[j, i], int(modes[j, i]), names[int(self.joint[i])])
+                      for i in range(3))
+                for j in range(len(X))]
+
     # ---- evaluation ---------------------------------------------------------------------
     def args(self) -> tuple:
         """The arrays in the order the kernels take them."""
@@ -253,12 +285,6 @@ class System:
         evaluate(*self.args(), X, np.ascontiguousarray(charts, dtype=np.int64), np.asarray(load, dtype=float),
                  R, J, True)
         return R, J
-
-
-@njit(cache=True)
-def wrap(a: float) -> float:
-    """Angle into ``(-pi, pi]``."""
-    return math.pi - ((math.pi - a) % TWO_PI)
 
 
 @njit(cache=True)
@@ -329,7 +355,7 @@ def assemble(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_re
         r[row + 1] = (tipy - py - by) * inv_L
         clamped = joint[i] == CLAMPED
         if clamped:
-            r[row + 2] = wrap(al + qi[TH] - th - tip_angle[i])
+            r[row + 2] = wrap_angle(al + qi[TH] - th - tip_angle[i])
         fsum_x += fx
         fsum_y += fy
         msum += bx * fy - by * fx + mL

@@ -46,12 +46,11 @@ an IK singularity (``J_IK`` singular), and where ``J_IK`` does not exist (FK sin
 
 **Peak bending strain** of rod i: ``max_s |theta_i'(s)| * c_i`` with ``c_i`` the outer fibre
 distance, the rod's ``radius`` (m) when the mechanism gives it, else ``None`` (the convention of
-:mod:`flexkin.analysis.feasibility`).  The peak curvature ``max |theta'|`` (1/m) is in closed
-form for pinned tips (:func:`~flexkin.analysis.feasibility.rod_max_curvature`), and for clamped
-tips the larger of the end curvatures and 401 samples.
+:mod:`flexkin.analysis.feasibility`).  The peak curvature ``max |theta'|`` (1/m) is exact, for pinned and
+clamped tips (:func:`~flexkin.analysis.feasibility.rod_max_curvature`).
 
 **Distance to the nearest singularity** is not a property of one equilibrium but of the branch
-it lies on: :func:`singularity_distance_map` over a workspace map (the distance in the plane
+it lies on: :func:`~flexkin.solve.workspace_map.singularity_distance_map` over a workspace map (the distance in the plane
 from each reached cell to the nearest IK/FK singularity found by the map) and
 :func:`singularity_distance_along_path` along a path (the arc length to the nearest sign change
 of ``det A_IK`` or ``det A_FK``).  Both are ``NaN`` (``None`` in JSON) where a singularity
@@ -68,11 +67,11 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..results import finite_or_none
+from ..core.jsonable import finite_or_none
 from ..system import System
 
 __all__ = ["Indices", "IndexArrays", "index_arrays", "performance_indices", "peak_curvature",
-           "singularity_distance_map", "singularity_distance_along_path", "INDEX_UNITS"]
+           "singularity_distance_along_path", "INDEX_UNITS"]
 
 #: Units of every entry of :meth:`Indices.to_dict` (also in the JSON, under ``"units"``).
 INDEX_UNITS: dict[str, str] = {
@@ -94,8 +93,6 @@ INDEX_UNITS: dict[str, str] = {
 
 #: condition number beyond which K counts as singular (no compliance)
 _SINGULAR_K = 1e14
-#: curvature samples per clamped-tip rod
-_CLAMPED_SAMPLES = 401
 
 
 @dataclass(frozen=True, eq=False)
@@ -268,19 +265,6 @@ def _stiffness(system: System, X: NDArray, charts: NDArray) -> NDArray[np.float6
         return out
 
 
-def _rod_peak(rod: Any) -> float:
-    """Peak ``|theta'|`` of one :class:`~flexkin.rod.state.RodState` (1/m)."""
-    from ..rod.kernels import CHART_WRENCH
-    from .feasibility import rod_max_curvature
-
-    if rod.chart != CHART_WRENCH and rod.joint != "clamped":
-        k = rod_max_curvature(rod)
-        if math.isfinite(k):
-            return k
-    ends = max(abs(float(rod.base_moment)), abs(float(rod.tip_moment))) / float(rod.EI)
-    return max(ends, float(np.max(np.abs(rod.curvature(_CLAMPED_SAMPLES)))))
-
-
 def peak_curvature(rods: Sequence[Any]) -> NDArray[np.float64]:
     """Peak curvature ``max_s |theta'(s)|`` (1/m) of each rod.
 
@@ -294,19 +278,9 @@ def peak_curvature(rods: Sequence[Any]) -> NDArray[np.float64]:
     ndarray
         One value per rod.
     """
-    return np.array([_rod_peak(r) for r in rods], dtype=float)
+    from .feasibility import rod_max_curvature
 
-
-def _rods_of(system: System, mech: Any, X: NDArray, charts: NDArray) -> list[tuple[Any, ...]]:
-    """The rods (RodState) of every row of ``X``, modes left at 0 (not needed here)."""
-    from ..rod.state import RodState
-
-    q, _ = system.unit_rods(X, charts)
-    lay = system.layout
-    A, alpha, L = system.clamps(X[:, lay.inputs])
-    return [tuple(RodState.from_unit(q[j, i], int(charts[j, i]), X[j, lay.rod[i]], L[j, i], system.EI[i],
-                                     A[j, i], alpha[j, i], 0, mech.legs[i].joint) for i in range(3))
-            for j in range(len(X))]
+    return np.array([rod_max_curvature(r) for r in rods], dtype=float)
 
 
 def _check_length(length: float | None, default: float) -> float:
@@ -402,7 +376,7 @@ def index_arrays(mech: Any, X: ArrayLike, charts: ArrayLike, *, rods: Sequence[S
             a = np.arctan2(Ut[:, 1, 0], Ut[:, 0, 0])
             ang[has] = np.where(a > 0.5 * np.pi, a - np.pi, np.where(a <= -0.5 * np.pi, a + np.pi, a))
     # peak curvature and strain
-    rods_ = _rods_of(m, mech, X, charts) if rods is None else rods
+    rods_ = m.rods(X, charts) if rods is None else rods
     curv = np.array([peak_curvature(r) for r in rods_], dtype=float).reshape(n, 3)
     radius = np.array([np.nan if leg.rod.radius is None else float(leg.rod.radius) for leg in mech.legs])
     strain = curv * radius[None, :]
@@ -437,52 +411,6 @@ def performance_indices(solutions: Sequence[Any], characteristic_length: float |
         for j, k in enumerate(ks):
             out[k] = arr.item(j)
     return tuple(out)  # type: ignore[arg-type]
-
-
-# ---------------------------------------------------------------------------------------------
-def singularity_distance_map(ws_map: Any, step: float) -> NDArray[np.float64]:
-    """Distance (m) from every reached cell of a workspace map to the nearest singularity found.
-
-    A boundary cell (``boundary_ik | boundary_fk``) has a neighbour across an IK or FK
-    singularity (or a loss of stability), which lies between the two cells: its distance is
-    ``h/2``.  A reached cell's distance is the Euclidean distance to the nearest boundary cell
-    plus ``h/2``.  Cells whose nearest *unknown* cell is closer are ``NaN``: an unknown cell is
-    a reached cell on the grid's edge, next to an unresolved (seam) cell or next to an
-    unvisited cell (a time budget cut the map short), beyond which a singularity may hide.
-
-    Parameters
-    ----------
-    ws_map : WorkspaceMap
-        One aspect of a :class:`~flexkin.solve.workspace.Workspace`.
-    step : float
-        The grid step ``h`` (m), ``Workspace.step``.
-
-    Returns
-    -------
-    ndarray (ny, nx)
-        Distances (m); ``NaN`` outside the reached cells and where unknown.
-    """
-    from scipy.ndimage import distance_transform_edt
-
-    from ..solve.workspace import REACHED, SEAM
-
-    h = float(step)
-    reached = np.asarray(ws_map.status) == REACHED
-    out = np.full(reached.shape, np.nan)
-    sing = (np.asarray(ws_map.boundary_ik) | np.asarray(ws_map.boundary_fk)) & reached
-    if not np.any(sing) or h <= 0:
-        return out
-    status = np.pad(np.asarray(ws_map.status), 1, constant_values=-1)   # -1: beyond the grid
-    unknown = np.zeros_like(reached)
-    for dj, di in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-        nb = status[1 + dj:status.shape[0] - 1 + dj, 1 + di:status.shape[1] - 1 + di]
-        unknown |= (nb == -1) | (nb == 0) | (nb == SEAM)
-    unknown &= reached
-    d_s = distance_transform_edt(~sing) * h + 0.5 * h
-    d_u = distance_transform_edt(~unknown) * h + 0.5 * h if np.any(unknown) else np.full(reached.shape, np.inf)
-    known = reached & (d_s <= d_u)
-    out[known] = d_s[known]
-    return out
 
 
 def singularity_distance_along_path(poses: ArrayLike, sing_ik: ArrayLike, sing_fk: ArrayLike,

@@ -48,14 +48,45 @@ angles and revolute inputs in radians; so ``J_IK`` maps ``(drho / L_ref or dphi)
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..results import Jacobians
+from ..core.jsonable import finite_matrix, finite_or_none
 from ..system import System
 
-__all__ = ["JacobianArrays", "kinematic_jacobians", "system_blocks", "singularity_measures"]
+__all__ = ["Jacobians", "JacobianArrays", "kinematic_jacobians", "system_blocks", "singularity_measures"]
+
+
+@dataclass(frozen=True, eq=False)
+class Jacobians:
+    """Kinematic Jacobians of Eq. (16) at an equilibrium (:mod:`flexkin.analysis.jacobian`).
+
+    ``J_IK`` (``dx = J_IK drho``) and ``J_FK`` (``drho = J_FK dx``) are dimensionless: positions
+    and prismatic/length inputs in units of the mechanism's length scale ``L_ref``, angles in
+    radians.  ``None`` where the Jacobian does not exist (at an FK, resp. IK, singularity).
+    ``sing_ik``, ``sing_fk`` are the singularity measures (:mod:`flexkin.analysis.jacobian`):
+    dimensionless and scale-free, in [-1, 1], smooth along a branch and zero at IK and FK
+    singularities (``|sing_ik| = prod sigma_i / sqrt(1 + sigma_i^2)``, ``|sing_fk| =
+    prod 1 / sqrt(1 + sigma_i^2)`` with ``sigma_i`` the singular values of ``J_IK``).
+    """
+
+    J_IK: NDArray[np.float64] | None
+    J_FK: NDArray[np.float64] | None
+    det_ik: float
+    det_fk: float
+    cond: float
+    sing_ik: float
+    sing_fk: float
+    L_ref: float = 1.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready entry (SPEC §4); non-finite values are ``None``."""
+        return {"det_ik": finite_or_none(self.det_ik), "det_fk": finite_or_none(self.det_fk),
+                "cond": finite_or_none(self.cond), "J_IK": finite_matrix(self.J_IK), "J_FK": finite_matrix(self.J_FK),
+                "sing_ik": finite_or_none(self.sing_ik), "sing_fk": finite_or_none(self.sing_fk),
+                "units": f"dimensionless: lengths in L_ref = {self.L_ref:.6g} m, angles in rad"}
 
 #: condition number beyond which a Newton matrix counts as singular
 SINGULAR_COND = 1e14
@@ -145,7 +176,7 @@ class JacobianArrays:
     sing_fk: NDArray[np.float64]
 
     def item(self, i: int, L_ref: float = 1.0) -> Jacobians:
-        """The :class:`~flexkin.results.Jacobians` of equilibrium ``i``."""
+        """The :class:`Jacobians` of equilibrium ``i``."""
         def mat(a):
             return a.copy() if np.all(np.isfinite(a)) else None
 

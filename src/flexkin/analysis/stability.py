@@ -112,7 +112,6 @@ from numpy.typing import NDArray
 from ..core.geometry2d import rotate
 from ..core.jit import njit
 from ..core.linalg_threads import single_threaded_blas
-from ..results import Stability
 from ..rod.closed_form import seam_to_chart
 from ..rod.elliptic import rf
 from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, FX, FY, M0, ML, NQ, PHI, TH, X, Y, eval_rod
@@ -121,8 +120,37 @@ from ..rod.wrench import _half_angles, wrench_eval
 from ..system import System
 from .second_variation import P_FINE, _F, element_rule, elements_for, fe_stability, rod_nodes
 
-__all__ = ["StabilityArrays", "Eigenpairs", "mechanism_stability", "closed_form_index", "rod_stability",
+__all__ = ["Stability", "StabilityArrays", "Eigenpairs", "mechanism_stability", "closed_form_index", "rod_stability",
            "RodStability", "output_stiffness", "solution_margins", "GAP_SAFETY"]
+
+
+@dataclass(frozen=True)
+class Stability:
+    """Stability of an equilibrium with the actuators locked (paper §4.3).
+
+    Attributes
+    ----------
+    stable : bool or None
+        From the closed form (:mod:`flexkin.analysis.stability`); ``None`` where the closed form
+        is not conclusive and the smallest eigenvalue of the discretised second variation is
+        below the resolution the computation can guarantee (``note`` says why).
+    margin : float
+        Smallest eigenvalue of the dimensionless second variation; positive iff stable.
+        ``NaN`` until computed: :attr:`Solution.stability_margin` and :meth:`Solution.to_dict`
+        compute it on first use (``ik(..., margin=True)`` computes it up front).
+    index : int or None
+        Number of negative eigenvalues (unstable directions) where resolved.
+    resolution : float
+        The guaranteed resolution of ``margin`` (``NaN`` until computed).
+    note : str
+        Why the verdict is undecided, or ``""``.
+    """
+
+    stable: bool | None
+    margin: float
+    index: int | None
+    resolution: float = 0.0
+    note: str = ""
 
 #: below this lambda L both base problems of a rod are positive definite (J5)
 LAM_SAFE = 0.5 * math.pi * 0.999
@@ -613,7 +641,7 @@ class StabilityArrays:
     pairs: Eigenpairs | None = None
 
     def item(self, i: int) -> Stability:
-        """The :class:`~flexkin.results.Stability` of equilibrium ``i``."""
+        """The :class:`Stability` of equilibrium ``i``."""
         st = int(self.stable[i])
         note = ""
         if st < 0:

@@ -25,7 +25,7 @@ from ..io.measurements import DEFAULT_SIGMA, MeasurementRow
 from ..mechanism.model import Mechanism
 from ..solve.continuation import to_working_charts
 from ..solve.corrector import newton
-from ..solve.ik import RESIDUAL_TOL
+from ..solve.corrector import RESIDUAL_TOL
 from ..system import System
 from .params import Parameter, array_derivatives, with_values
 from .sensitivity import parameter_block, prediction_derivative

@@ -9,7 +9,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..results import Result, finite_or_none
+from ..core.jsonable import finite_or_none
+from ..results import Result
 
 __all__ = ["ParameterEstimate", "Combination", "RowFit", "CalibrationDiagnostics", "CalibrationResult"]
 

@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = ["as_triple", "as_pair", "check_max_mode", "check_budget", "check_positive", "check_count",
            "check_angle_deg", "angle_note", "check_grid", "short_text", "MAX_MODE_LIMIT", "ANGLE_LIMIT_DEG",
            "MAX_GRID_POINTS", "KeyPathError", "type_name", "suggest_key", "key_text", "check_table_keys",
-           "file_number", "file_choice"]
+           "file_number", "file_choice", "as_load"]
 
 #: largest d-mode any search accepts
 MAX_MODE_LIMIT = 6
@@ -37,6 +37,24 @@ def as_triple(value: ArrayLike, what: str) -> NDArray[np.float64]:
     if a.shape != (3,) or not np.all(np.isfinite(a)):
         raise ValueError(f"{what} must be three finite numbers, got {value!r}")
     return a
+
+
+def as_load(mech: Any, load: ArrayLike | None) -> NDArray[np.float64]:
+    """The load wrench ``(Fx, Fy, Mz)`` (N, N, N m): ``load`` if given, else the mechanism
+    file's ``[load]``.
+
+    Parameters
+    ----------
+    mech : Mechanism
+        The mechanism (its ``load``).
+    load : array_like of 3 floats, optional
+        The load given to a solver.
+
+    Returns
+    -------
+    ndarray (3,)
+    """
+    return as_triple(mech.load if load is None else load, "load (Fx, Fy, Mz)")
 
 
 def as_pair(value: ArrayLike, what: str) -> NDArray[np.float64]:

@@ -49,7 +49,8 @@ def add_explore_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def run_explore_command(args: argparse.Namespace) -> int:
     """Run ``flexkin explore`` for parsed ``args``; return the exit status."""
-    from flexkin import MechanismError, load_mechanism
+    from flexkin.errors import MechanismError
+    from flexkin.mechanism import load_mechanism
 
     try:
         mech = load_mechanism(args.mechanism)

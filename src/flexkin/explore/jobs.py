@@ -170,12 +170,12 @@ class WorkspaceJob:
             self.on_progress(self)
 
     def _run(self) -> None:
-        import flexkin
+        from flexkin.solve.workspace import workspace
 
         try:
-            self.result = flexkin.workspace(self.mech, self.theta, seed=self.solution, load=self.load,
-                                            step=self.step, bounds=self.bounds, all_aspects=False,
-                                            progress=self._progress, time_budget=self.time_budget)
+            self.result = workspace(self.mech, self.theta, seed=self.solution, load=self.load, step=self.step,
+                                    bounds=self.bounds, all_aspects=False, progress=self._progress,
+                                    time_budget=self.time_budget)
         except Cancelled:
             self.elapsed = time.perf_counter() - self.t0
             return

@@ -30,7 +30,6 @@ from typing import Any, Sequence
 
 import numpy as np
 
-import flexkin
 from flexkin.core.geometry2d import wrap_to_pi
 from flexkin.core.validation import check_max_mode
 from flexkin.results import fill_margins
@@ -175,12 +174,15 @@ class SolveOutcome:
 def solve(mech, req: SolveRequest) -> SolveOutcome:
     """Run the full IK (``req.mode == "ik"``) or FK for ``req``; never raises for a bad target
     (the error is returned)."""
+    from flexkin.solve.fk import fk   # imported on first use, like the Tracker
+    from flexkin.solve.ik import ik
+
     t0 = time.perf_counter()
     try:
         if req.mode == "ik":
-            res = flexkin.ik(mech, req.target, load=req.load, max_mode=req.max_mode)
+            res = ik(mech, req.target, load=req.load, max_mode=req.max_mode)
         else:
-            res = flexkin.fk(mech, req.target, load=req.load, max_mode=req.max_mode)
+            res = fk(mech, req.target, load=req.load, max_mode=req.max_mode)
     except ValueError as e:
         return SolveOutcome(req, None, str(e), time.perf_counter() - t0)
     return SolveOutcome(req, res, "", time.perf_counter() - t0)
@@ -188,11 +190,13 @@ def solve(mech, req: SolveRequest) -> SolveOutcome:
 
 def feasibility_of(mech, solutions: Sequence[Any], cancelled=lambda: False) -> dict[int, Any] | None:
     """Feasibility verdict of each solution, by id (``None`` if ``cancelled()`` turned true)."""
+    from flexkin.analysis.feasibility import check_feasibility
+
     out: dict[int, Any] = {}
     for s in solutions:
         if cancelled():
             return None
-        out[s.id] = flexkin.check_feasibility(mech, s)
+        out[s.id] = check_feasibility(mech, s)
     return out
 
 

@@ -12,7 +12,7 @@ __all__ = ["plot_rod_solutions", "plot_rod_sweep", "plot_parameter_space"]
 
 
 def plot_rod_solutions(result, path: str | None = None) -> Any:
-    """Deformed shapes of every equilibrium of a :class:`~flexkin.rod.RodInverseResult` (tip pinned,
+    """Deformed shapes of every equilibrium of a :class:`~flexkin.solve.rod_inverse.RodInverseResult` (tip pinned,
     or clamped with ``result.tip_angle``: then the imposed tip tangent is drawn and the legend
     gives the tip moment), numbered as in the ``flexkin rod`` table.
 
@@ -65,7 +65,7 @@ def plot_rod_sweep(sweep, path: str | None = None) -> Any:
     Parameters
     ----------
     sweep : RodSweep
-        The branches of :func:`flexkin.rod.sweep.rod_sweep`.
+        The branches of :func:`flexkin.solve.rod_sweep.rod_sweep`.
     path : str, optional
         Save the figure there.
 

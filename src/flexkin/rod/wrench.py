@@ -183,7 +183,6 @@ def wrench_eval(a: float, b: float, m0: float, out: np.ndarray, grad: np.ndarray
         dpsi[1] = a / (R * R)
     grad[PHI, :] = dlam
     dc = -0.5 * s * dpsi
-    ds = 0.5 * c * dpsi
     cp, sp = c * c - s * s, 2.0 * c * s
     dcp = -sp * dpsi
     dsp = cp * dpsi

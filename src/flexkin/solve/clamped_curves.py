@@ -27,21 +27,17 @@ from numpy.typing import NDArray
 
 from ..core.jit import njit
 from ..core.geometry2d import rotate
+from ..core.geometry2d_kernels import wrap_angle
 from ..rod.slots import EN, FX, FY, ML, NQ, TH, X, Y
 from ..rod.wrench import wrench_eval, wrench_mode
 from ..rod.wrench_atlas import get_wrench_atlas, lambda_max, moment_scale, turning_max
 from .conditions import condition_eval
-from .curves import LegCurve
+from .leg_curve import LegCurve
 
 __all__ = ["clamped_leg_curve"]
 
 TWO_PI = 2.0 * math.pi
 MAX_POINTS = 4000
-
-
-@njit
-def _wrap(a: float) -> float:
-    return math.pi - ((math.pi - a) % TWO_PI)
 
 
 @njit
@@ -53,7 +49,7 @@ def _G(z, code, p0, p1, tgt, q, gr, J):
     for c in range(3):
         J[0, c] = gx * gr[X, c] + gy * gr[Y, c]
         J[1, c] = gr[TH, c] + ax * gr[X, c] + ay * gr[Y, c]
-    return g, _wrap(al + q[TH] - tgt), adm
+    return g, wrap_angle(al + q[TH] - tgt), adm
 
 
 @njit
@@ -236,7 +232,7 @@ def _seeds(x, y, th, valid, code, p0, p1, tgt, pad) -> np.ndarray:
                             if first:
                                 ref = a
                                 first = False
-                            a = ref + _wrap(a - ref)
+                            a = ref + wrap_angle(a - ref)
                             lo0, hi0 = min(lo0, g), max(hi0, g)
                             lo1, hi1 = min(lo1, a), max(hi1, a)
                 if not ok:
@@ -245,7 +241,7 @@ def _seeds(x, y, th, valid, code, p0, p1, tgt, pad) -> np.ndarray:
                 e1 = pad * (hi1 - lo1) + 1e-12
                 if not (lo0 - e0 <= 0.0 <= hi0 + e0):
                     continue
-                m = ref - _wrap(ref)  # the multiple of 2 pi nearest the cell
+                m = ref - wrap_angle(ref)  # the multiple of 2 pi nearest the cell
                 if (lo1 - e1 <= m <= hi1 + e1) or (lo1 - e1 <= m + TWO_PI <= hi1 + e1) \
                         or (lo1 - e1 <= m - TWO_PI <= hi1 + e1):
                     out.append((i, j, k))

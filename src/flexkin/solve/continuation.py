@@ -7,7 +7,7 @@ loop over the candidates):
   ``d(z, rho) = -A_IK^-1 G_x dx`` (:mod:`flexkin.analysis.jacobian`);
 * **corrector**: chord Newton with the predictor's matrix ``A_IK`` (one residual per
   iteration), then full Newton if the chord iteration stalls;
-* **acceptance**: residual <= :data:`~flexkin.solve.ik.RESIDUAL_TOL` and a corrector
+* **acceptance**: residual <= :data:`~flexkin.solve.corrector.RESIDUAL_TOL` and a corrector
   displacement small against the predicted one, in physical terms (inputs and tip forces),
   so that a step never jumps to another branch.  A step that fails is an answer, not an
   error: near an IK singularity (a fold of the branch, typically the workspace boundary)
@@ -33,7 +33,7 @@ from ..rod.closed_form import chart_to_seam, seam_to_chart
 from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, FX, FY, ML, NQ, eval_rod, project
 from ..system import System, eval_one
 from .corrector import _norm, _project_rods
-from .ik import RESIDUAL_TOL
+from .corrector import RESIDUAL_TOL
 
 __all__ = ["continue_ik", "to_working_charts", "SEAM_V", "SEAM_IN", "SEAM_OUT"]
 

@@ -21,7 +21,10 @@ from ..core.linalg import solve_into
 from ..rod.kernels import CHART_WRENCH, NQ, project
 from ..system import System, eval_one
 
-__all__ = ["NewtonResult", "newton"]
+__all__ = ["NewtonResult", "newton", "RESIDUAL_TOL"]
+
+#: acceptance threshold on the scaled residual of a refined solution (IK, FK, continuation steps)
+RESIDUAL_TOL = 1e-10
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ from ..analysis.verify import verify_solutions
 from ..core.budget import Deadline, Rate, timed_slices
 from ..core.jit import njit
 from ..core.geometry2d import wrap_to_pi
-from ..io.progress import substage
+from ..io.progress import Progress, substage
 from ..results import Solution
 from ..rod.atlas import in_scope
 from ..rod.closed_form import SEAM_OFFSET, is_seam, mode_of, standard_chart
@@ -39,8 +39,10 @@ from ..rod.wrench import wrench_mode
 from ..rod.wrench_atlas import in_wrench_scope
 from ..rod.state import RodState
 from ..system import System
+from .corrector import RESIDUAL_TOL
+from .sliced import newton_within
 
-__all__ = ["finish_solutions", "build_solutions", "distinct", "canonical", "rod_modes", "SCOPE_MESSAGE"]
+__all__ = ["refine", "finish_solutions", "build_solutions", "distinct", "canonical", "rod_modes", "SCOPE_MESSAGE"]
 
 #: why a result is incomplete when the search reached equilibria with a rod near straight under
 #: tension beyond the numerical scope
@@ -338,3 +340,45 @@ def _with_id(s: Solution, k: int) -> Solution:
     """Number a solution just built (not yet shared): set in place, not copied."""
     object.__setattr__(s, "id", k)
     return s
+
+
+def refine(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int, held: str = "pose",
+           diag: dict[str, Any] | None = None, deadline: Deadline | None = None,
+           progress: Progress | None = None, margin: bool = False) -> list[Solution]:
+    """Newton-refine candidates ``X`` and build the solutions: IK and FK share this finish.
+
+    Parameters
+    ----------
+    system : System
+        The equation system of ``mech``.
+    mech : Mechanism
+        The mechanism.
+    X : (n, n_unknowns) array
+        Candidates.
+    charts : (n, 3) int array
+        Their rods' charts.
+    load : (3,) array
+        The load wrench.
+    max_mode : int
+        Largest d-mode reported.
+    held : {"pose", "inputs"}
+        What the Newton holds fixed: the pose (IK) or the inputs (FK).
+    diag : dict, optional
+        Diagnostics, told ``converged`` and what :func:`finish_solutions` counts.
+    deadline : Deadline, optional
+        What it leaves no time for is dropped and the deadline is hit.
+    progress : callable, optional
+        ``progress(fraction, stage)``.
+    margin : bool
+        Compute the stability margins now.
+
+    Returns
+    -------
+    list of Solution
+    """
+    res = newton_within(system, X, charts, load, held, deadline)
+    good = res.residual <= RESIDUAL_TOL
+    if diag is not None:
+        diag["converged"] = int(np.count_nonzero(good))
+    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
+                            held, deadline=deadline, progress=progress, margin=margin)

@@ -19,14 +19,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.budget import Deadline
-from ..core.validation import as_triple, check_max_mode
+from ..core.validation import as_load, as_triple, check_max_mode
 from ..io.progress import Progress, substage
 from ..results import FKDiagnostics, KinematicsResult
 from ..system import System
-from .finish import SCOPE_MESSAGE
+from .finish import SCOPE_MESSAGE, refine
 from .fk_lattice import lattice_starts
 from .fk_search import fk_starts
-from .ik import as_load, refine
 
 __all__ = ["fk"]
 

@@ -7,7 +7,7 @@ Procedure (paper §4.1-4.2, made global):
 2. every triple of curve points in platform equilibrium with the load (Eq. 15), found by
    subdivision over the three polylines in wrench space (:mod:`flexkin.solve.equilibrium`);
 3. the Newton corrector on the full equation system (:mod:`flexkin.solve.corrector`) to a
-   scaled residual <= :data:`RESIDUAL_TOL`, then one solution per equilibrium, stability and
+   scaled residual <= :data:`~flexkin.solve.corrector.RESIDUAL_TOL`, then one solution per equilibrium, stability and
    Jacobians (:mod:`flexkin.solve.finish`), sorted by (d-modes, energy).
 """
 
@@ -17,31 +17,23 @@ import time
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from ..core.budget import Deadline
-from ..core.validation import as_triple, check_max_mode
+from ..core.validation import as_load, as_triple, check_max_mode
 from ..io.progress import Progress, substage
-from ..results import IKDiagnostics, KinematicsResult, Solution
+from ..results import IKDiagnostics, KinematicsResult
 from ..system import System
 from .curves import leg_curves
 from .equilibrium import equilibrium_triples
-from .finish import SCOPE_MESSAGE, finish_solutions
-from .sliced import newton_within
+from .finish import SCOPE_MESSAGE, refine
 
-__all__ = ["ik", "refine", "refine_ik", "RESIDUAL_TOL", "as_load"]
+__all__ = ["ik"]
 
-#: acceptance threshold on the scaled residual of a refined solution
-RESIDUAL_TOL = 1e-10
 #: seconds reserved per equilibrium-triple candidate for its refinement and analysis, while the
 #: search runs under a time budget (a pinned IK candidate costs ~0.1 ms to refine, a solution
 #: ~1-2 ms to build; candidates outnumber solutions)
 CANDIDATE_COST = 3e-4
-
-
-def as_load(mech, load: ArrayLike | None) -> NDArray[np.float64]:
-    """The load wrench: ``load`` if given, else the mechanism file's ``[load]``."""
-    return as_triple(mech.load if load is None else load, "load (Fx, Fy, Mz)")
 
 
 def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *,
@@ -158,52 +150,6 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     res = KinematicsResult(tuple(sols), complete, msg, time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech,
                            tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves)
     return res.select(stable_only=True) if stable_only else res
-
-
-def refine(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int, held: str = "pose",
-           diag: dict[str, Any] | None = None, deadline: Deadline | None = None,
-           progress: Progress | None = None, margin: bool = False) -> list[Solution]:
-    """Newton-refine candidates ``X`` and build the solutions: IK and FK share this finish.
-
-    Parameters
-    ----------
-    system : System
-        The equation system of ``mech``.
-    mech : Mechanism
-        The mechanism.
-    X : (n, n_unknowns) array
-        Candidates.
-    charts : (n, 3) int array
-        Their rods' charts.
-    load : (3,) array
-        The load wrench.
-    max_mode : int
-        Largest d-mode reported.
-    held : {"pose", "inputs"}
-        What the Newton holds fixed: the pose (IK) or the inputs (FK).
-    diag : dict, optional
-        Diagnostics, told ``converged`` and what :func:`finish_solutions` counts.
-    deadline : Deadline, optional
-        What it leaves no time for is dropped and the deadline is hit.
-    progress : callable, optional
-        ``progress(fraction, stage)``.
-    margin : bool
-        Compute the stability margins now.
-
-    Returns
-    -------
-    list of Solution
-    """
-    res = newton_within(system, X, charts, load, held, deadline)
-    good = res.residual <= RESIDUAL_TOL
-    if diag is not None:
-        diag["converged"] = int(np.count_nonzero(good))
-    return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
-                            held, deadline=deadline, progress=progress, margin=margin)
-
-
-#: IK's name for :func:`refine` with the pose held (the workspace wave calls it so)
-refine_ik = refine
 
 
 def _empty_message(curves) -> str:

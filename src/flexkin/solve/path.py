@@ -33,13 +33,14 @@ from ..analysis.jacobian import kinematic_jacobians, singularity_measures, syste
 from ..analysis.stability import StabilityArrays, mechanism_stability
 from ..core.budget import Deadline, Rate
 from ..core.geometry2d import wrap_to_pi
-from ..core.validation import as_triple, check_count, check_max_mode
+from ..core.validation import as_load, as_triple, check_count, check_max_mode
 from ..io.progress import Progress, substage
-from ..results import Result, Solution, finite_or_none
+from ..core.jsonable import finite_or_none
+from ..results import Result, Solution
 from ..system import System
 from .continuation import SEAM_V, continue_ik
 from .finish import rod_modes
-from .ik import as_load, ik
+from .ik import ik
 
 __all__ = ["follow_path", "PathResult", "PathEvent", "MIN_SUBSTEP", "FOLD_SING"]
 

@@ -25,13 +25,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..core.validation import as_triple
+from ..core.validation import as_load, as_triple
 from ..results import Solution
 from ..system import System
 from .continuation import continue_ik
 from ..analysis.stability import mechanism_stability
 from .finish import build_solutions, rod_modes
-from .ik import as_load
 
 __all__ = ["Tracker", "TrackStep", "TrackEvent"]
 

@@ -223,7 +223,8 @@ def _feasibility_metrics(out: dict[str, Any], ws: Any) -> None:
 
 def _aspect_metrics(out: dict[str, Any], want: set[str], ws: Any, mech: Any) -> None:
     """The metrics of the largest aspect ``ws.maps[0]`` (see :data:`METRICS`)."""
-    from ..analysis.indices import index_arrays, singularity_distance_map
+    from ..analysis.indices import index_arrays
+    from ..solve.workspace_map import singularity_distance_map
     from ..system import System
 
     h = float(ws.step)

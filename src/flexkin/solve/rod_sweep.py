@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .inverse import RodInverseResult, refine_rod, solve_rod
+from .rod_inverse import RodInverseResult, refine_rod, solve_rod
 from ..core.geometry2d import rot2
 
 __all__ = ["RodSweep", "rod_sweep", "FIG19"]

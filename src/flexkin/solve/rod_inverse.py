@@ -25,11 +25,11 @@ from ..core.jit import njit
 
 from ..core.geometry2d import rot2
 from ..core.validation import check_max_mode, check_positive
-from .atlas import get_atlas, in_scope
-from .closed_form import mode_of
-from .kernels import NQ, X, Y, project, unified_eval
+from ..rod.atlas import get_atlas, in_scope
+from ..rod.closed_form import mode_of
+from ..rod.kernels import NQ, X, Y, project, unified_eval
 from ..results import Result
-from .state import RodState
+from ..rod.state import RodState
 
 __all__ = ["RodInverseResult", "solve_rod", "atlas_starts", "refine_rod", "ACCEPT_TOL"]
 
@@ -284,9 +284,9 @@ def _result(states: list[RodState], tip: NDArray, t0: float, base: dict, diag: d
 
 def _solve_clamped(local: NDArray, local_angle: float, t0: float, base: dict) -> RodInverseResult:
     """A rod clamped at both ends: every root in the wrench chart (:mod:`flexkin.rod.clamped`)."""
-    from .clamped import clamped_rod_roots
-    from .kernels import CHART_WRENCH, eval_rods
-    from .wrench import wrench_mode
+    from ..rod.clamped import clamped_rod_roots
+    from ..rod.kernels import CHART_WRENCH, eval_rods
+    from ..rod.wrench import wrench_mode
 
     Z, diag = clamped_rod_roots(float(local[0]), float(local[1]), local_angle, base["max_mode"])
     q = np.empty((len(Z), NQ))
