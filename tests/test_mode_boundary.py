@@ -31,7 +31,7 @@ from scipy.integrate import solve_ivp
 
 import flexkin
 from flexkin.solve.continuation import continue_ik
-from flexkin.solve.finish import pinned_chart
+from flexkin.rod.closed_form import pinned_chart
 from flexkin.system import System
 
 sys.path.insert(0, os.path.dirname(__file__))

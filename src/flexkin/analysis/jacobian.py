@@ -70,6 +70,25 @@ class Jacobians:
     dimensionless and scale-free, in [-1, 1], smooth along a branch and zero at IK and FK
     singularities (``|sing_ik| = prod sigma_i / sqrt(1 + sigma_i^2)``, ``|sing_fk| =
     prod 1 / sqrt(1 + sigma_i^2)`` with ``sigma_i`` the singular values of ``J_IK``).
+
+    Attributes
+    ----------
+    J_IK : (3, 3) ndarray or None
+        ``dx = J_IK drho`` (dimensionless, see above); ``None`` at an FK singularity.
+    J_FK : (3, 3) ndarray or None
+        ``drho = J_FK dx`` (dimensionless); ``None`` at an IK singularity.
+    det_ik : float
+        ``det J_IK`` (dimensionless); ``inf`` where ``J_IK`` does not exist.
+    det_fk : float
+        ``det J_FK`` (dimensionless); ``inf`` where ``J_FK`` does not exist.
+    cond : float
+        2-norm condition number of ``J_FK`` (dimensionless); ``inf`` where it does not exist.
+    sing_ik : float
+        IK singularity measure in [-1, 1] (dimensionless, scale-free; 0 at an IK singularity).
+    sing_fk : float
+        FK singularity measure in [-1, 1] (dimensionless, scale-free; 0 at an FK singularity).
+    L_ref : float
+        The length scale (m) of the dimensionless lengths.
     """
 
     J_IK: NDArray[np.float64] | None
@@ -87,6 +106,7 @@ class Jacobians:
                 "cond": finite_or_none(self.cond), "J_IK": finite_matrix(self.J_IK), "J_FK": finite_matrix(self.J_FK),
                 "sing_ik": finite_or_none(self.sing_ik), "sing_fk": finite_or_none(self.sing_fk),
                 "units": f"dimensionless: lengths in L_ref = {self.L_ref:.6g} m, angles in rad"}
+
 
 #: condition number beyond which a Newton matrix counts as singular
 SINGULAR_COND = 1e14

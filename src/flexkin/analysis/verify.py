@@ -64,7 +64,7 @@ from ..core.dop853 import STAGES, advance, error_norm, stage_state, step_factor
 from ..core.geometry2d import rotate, wrap_to_pi
 from ..core.geometry2d_kernels import wrap_angle
 from ..core.jit import njit
-from ..rod.closed_form import SEAM_OFFSET, is_seam, standard_chart
+from ..rod.closed_form import pinned_chart
 from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, profile
 from ..system import System
 from .jacobian import system_blocks
@@ -358,8 +358,7 @@ def _nodes(system: System, X: NDArray, charts: NDArray, w: dict[str, NDArray], A
     ch = np.asarray(charts, np.int64).reshape(-1).copy()
     seam = ch == CHART_SEAM
     if np.any(seam):   # the profile is evaluated in the unified chart; seam pairs are stored raw
-        z1 = np.where(is_seam(z[seam, 1]), z[seam, 1], z[seam, 1] + SEAM_OFFSET)   # or offset-encoded
-        z[seam, 0], z[seam, 1] = standard_chart(z[seam, 0], z1)
+        z[seam, 0], z[seam, 1] = pinned_chart(z[seam, :2], ch[seam])   # or offset-encoded
         ch[seam] = CHART_UNIFIED
     _interior_nodes(ch, z, offsets, nodes)
     return nodes, offsets

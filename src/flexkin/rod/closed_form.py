@@ -42,7 +42,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .slots import CHART_SEAM
+
 __all__ = [
+    "pinned_chart",
     "ellipf",
     "ellipe_inc",
     "mode_of",
@@ -490,3 +493,12 @@ def standard_chart(z0: ArrayLike, z1: ArrayLike) -> tuple[NDArray[np.float64], N
         return z0, z1
     v, ph = seam_to_chart(np.where(seam, z0, 0.0), np.where(seam, z1 - SEAM_OFFSET, 0.5))
     return np.where(seam, v, z0), np.where(seam, ph, z1)
+
+
+def pinned_chart(z: ArrayLike, charts: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The solvers' chart ``(v, phis)`` of pinned rods with coordinates ``z`` (n, 2) stored in
+    ``charts`` (n,): unified pairs as they are, seam pairs converted whether stored raw
+    (``(psi_s, chi)``, as the solvers iterate on them) or offset-encoded (:func:`standard_chart`)."""
+    z = np.asarray(z, dtype=float).reshape(-1, 2)
+    z1 = np.where((np.asarray(charts).reshape(-1) == CHART_SEAM) & ~is_seam(z[:, 1]), z[:, 1] + SEAM_OFFSET, z[:, 1])
+    return standard_chart(z[:, 0], z1)

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.geometry2d import rotate
-from .closed_form import SEAM_OFFSET, is_seam, mode_of, standard_chart, to_paper
+from .closed_form import mode_of, pinned_chart, standard_chart, to_paper
 from .kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, EN, FX, FY, M0, ML, NQ, TH, X, Y, eval_rods, profile_batch
 
 __all__ = ["RodState", "profiles", "centre_lines"]
@@ -21,10 +21,8 @@ def _unified(chart: int, z0: float, z1: float) -> tuple[float, float]:
     """The solvers' chart ``(v, phis)`` of a pinned rod stored in ``chart``: pairs in the seam
     chart are converted whether raw (``(psi_s, chi)``, the continuation's unknowns) or
     offset-encoded (:func:`~flexkin.rod.closed_form.standard_chart`)."""
-    if chart == CHART_SEAM and not bool(is_seam(z1)):
-        z1 = z1 + SEAM_OFFSET
-    v, ph = standard_chart(z0, z1)
-    return float(v), float(ph)
+    v, ph = pinned_chart([z0, z1], [chart])
+    return float(v[0]), float(ph[0])
 
 
 @dataclass(frozen=True)
@@ -128,10 +126,7 @@ class RodState:
                          np.where(m0 != 0, np.copysign(np.inf, m0), 0.0))
         pinned = (charts == CHART_UNIFIED) | (charts == CHART_SEAM)
         if np.any(pinned):
-            z0 = coords[pinned, 0]
-            z1 = coords[pinned, 1]
-            z1 = np.where((charts[pinned] == CHART_SEAM) & ~is_seam(z1), z1 + SEAM_OFFSET, z1)
-            v, ph = standard_chart(z0, z1)
+            v, ph = pinned_chart(coords[pinned, :2], charts[pinned])
             k[pinned] = to_paper(np.tanh(v), ph)[0]
         if dims is None:
             dims = np.where(charts == CHART_WRENCH, 3, 2)
@@ -224,8 +219,7 @@ def _unit_profiles(rods: Sequence[RodState], s: NDArray[np.float64]) -> NDArray[
         z[i, :len(r.coords)] = r.coords
     seam = ch == CHART_SEAM
     if np.any(seam):  # profiles are evaluated in the unified chart (see _unified)
-        z1 = np.where(is_seam(z[seam, 1]), z[seam, 1], z[seam, 1] + SEAM_OFFSET)
-        z[seam, 0], z[seam, 1] = standard_chart(z[seam, 0], z1)
+        z[seam, 0], z[seam, 1] = pinned_chart(z[seam, :2], ch[seam])
         ch[seam] = CHART_UNIFIED
     profile_batch(ch, z, s, out)
     return out

@@ -31,7 +31,7 @@ from ..core.geometry2d import wrap_to_pi
 from ..io.progress import Progress, substage
 from ..results import Solution
 from ..rod.atlas import in_scope
-from ..rod.closed_form import SEAM_OFFSET, is_seam, mode_of, standard_chart
+from ..rod.closed_form import mode_of, pinned_chart
 from ..rod.kernels import CHART_SEAM, CHART_WRENCH, PHI, TH
 from ..rod.seam_atlas import seam_in_scope
 from ..rod.slots import X as X_, Y as Y_
@@ -60,14 +60,6 @@ def canonical(system: System, X: NDArray) -> NDArray[np.float64]:
     X[:, lay.inputs] = u
     X[:, lay.pose.start + 2] = wrap_to_pi(X[:, lay.pose.start + 2])
     return X
-
-
-def pinned_chart(z: NDArray, charts: NDArray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The solvers' chart ``(v, phis)`` of pinned rods with coordinates ``z`` (n, 2) in ``charts``
-    (n,): unified pairs as they are, seam pairs converted (stored raw, as the solvers iterate on
-    them, or offset-encoded, :func:`~flexkin.rod.closed_form.standard_chart`)."""
-    z1 = np.where((charts == CHART_SEAM) & ~is_seam(z[:, 1]), z[:, 1] + SEAM_OFFSET, z[:, 1])
-    return standard_chart(z[:, 0], z1)
 
 
 #: a rod whose base moment (or, for a clamped tip, tip moment) is below this, relative to its

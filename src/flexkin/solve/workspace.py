@@ -53,8 +53,8 @@ from ..core.budget import Deadline, Rate, timed_slices
 from ..core.geometry2d import wrap_to_pi
 from ..core.validation import MAX_GRID_POINTS, MAX_MODE_LIMIT, as_load, check_max_mode
 from ..results import Solution
-from ..rod.closed_form import SEAM_OFFSET, is_seam, standard_chart
-from ..rod.kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, FX, FY, M0
+from ..rod.closed_form import pinned_chart
+from ..rod.kernels import CHART_UNIFIED, CHART_WRENCH, FX, FY, M0
 from ..system import System
 from .continuation import SEAM_V, continue_ik
 from .finish import rod_modes
@@ -154,8 +154,7 @@ def cell_peak_curvature(system: System, mech: Any, X: NDArray, charts: NDArray) 
         pinned = (ch != CHART_WRENCH) & (mech.legs[i].joint != "clamped")
         other |= ~pinned
         c = lay.rod[i].start
-        z1 = np.where((ch == CHART_SEAM) & ~is_seam(X[:, c + 1]), X[:, c + 1] + SEAM_OFFSET, X[:, c + 1])
-        v, ph = standard_chart(X[:, c], z1)
+        v, ph = pinned_chart(X[:, c:c + 2], ch)
         peak = 2.0 * np.sqrt(np.hypot(q[:, i, FX], q[:, i, FY])) * np.abs(np.tanh(v))
         k = np.maximum(np.where(ph <= 0.0, peak, peak * np.abs(np.cos(ph))), np.abs(q[:, i, M0]))
         out[:, i] = np.where(pinned, k / L[:, i], 0.0)
