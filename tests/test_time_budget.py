@@ -40,6 +40,27 @@ def test_path_and_workspace_time_budget(rfr):
     assert "time budget" in w.message
 
 
+def test_ik_budget_is_looked_at_between_the_legs_curves(examples_dir):
+    """A clamped mechanism's curves take most of its IK (about half a second per leg): the
+    budget is looked at before each leg, so a budget of a fraction of that ends after at most
+    one leg's curves (it overshot by all three before), incomplete."""
+    from flexkin.solve.curves import leg_curves
+    from flexkin.system import System
+
+    mech = flexkin.load_mechanism(examples_dir / "unit_3pff.toml")
+    pose = (0.0, 0.01, np.radians(21))
+    flexkin.ik(mech, (0.0, 0.0, np.radians(20)), time_budget=0.05)  # loads the atlases (start-up)
+    B = System.from_mechanism(mech).platform_points(np.array([pose]))[0]
+    t = time.perf_counter()
+    curves = leg_curves(mech, B, 2, theta=pose[2])
+    all_legs = time.perf_counter() - t
+    assert all(len(c) for c in curves)
+    budget = 0.2 * all_legs
+    r = flexkin.ik(mech, pose, time_budget=budget)
+    assert r.complete is False and "time budget" in r.message
+    assert r.elapsed < budget + 0.67 * all_legs  # at most one leg's curves past the budget (of three)
+
+
 @pytest.mark.parametrize("bad", [0, -1, float("nan"), "soon"])
 def test_bad_budget(rfr, bad):
     with pytest.raises(ValueError, match="time_budget"):

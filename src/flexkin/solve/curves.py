@@ -15,6 +15,7 @@ from typing import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.budget import Deadline
 from .clamped_curves import clamped_leg_curve
 from .leg_curve import LegCurve
 from .pinned_curves import pinned_leg_curve
@@ -23,7 +24,8 @@ __all__ = ["LegCurve", "leg_curves"]
 
 
 def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.0, force_tol: float = 0.05,
-               passes: int = 8, progress: Callable[[float, str], None] | None = None) -> list[LegCurve]:
+               passes: int = 8, progress: Callable[[float, str], None] | None = None,
+               deadline: Deadline | None = None) -> list[LegCurve]:
     """Geometric-condition curves of the legs for world attach points ``B`` (3, 2) and platform
     orientation ``theta``: pinned legs by :func:`~flexkin.solve.pinned_curves.pinned_leg_curve`,
     clamped legs by :func:`~flexkin.solve.clamped_curves.clamped_leg_curve`.
@@ -42,6 +44,10 @@ def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.
         Maximum number of bisection passes (pinned legs).
     progress : callable, optional
         Called as ``progress(legs done / 3, "leg i")`` after each leg.
+    deadline : Deadline, optional
+        Looked at before each leg: once it has expired (it is then
+        :attr:`~flexkin.core.budget.Deadline.hit`), the remaining legs get no curves.  One leg's
+        curves are not interrupted (a clamped leg's take up to about half a second).
 
     Returns
     -------
@@ -50,6 +56,9 @@ def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.
     """
     out = []
     for i, leg in enumerate(mech.legs):
+        if deadline is not None and deadline.expired():
+            out.append(LegCurve(i, leg.actuation, ()))
+            continue
         if progress is not None and i:
             progress(i / 3, f"leg {i + 1}")
         if leg.platform_joint.carries_moment:

@@ -82,7 +82,7 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     system = System.from_mechanism(mech)
     B = system.platform_points(pose[None])[0]
     curves = leg_curves(mech, B, max_mode, theta=float(pose[2]),
-                        progress=substage(progress, 0.0, 0.3, "geometric-condition curves"))
+                        progress=substage(progress, 0.0, 0.3, "geometric-condition curves"), deadline=dl)
     diag: dict[str, Any] = {"branches": tuple(len(c) for c in curves)}
     given = tuple(float(v) for v in pose)
     if dl.expired():
