@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 from typing import Any, Mapping
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["as_triple", "as_pair", "check_max_mode", "check_budget", "check_positive", "check_count",
+__all__ = ["read_text_file", "as_triple", "as_pair", "check_max_mode", "check_budget", "check_positive", "check_count",
            "check_angle_deg", "angle_note", "check_grid", "short_text", "MAX_MODE_LIMIT", "ANGLE_LIMIT_DEG",
            "MAX_GRID_POINTS", "KeyPathError", "type_name", "suggest_key", "key_text", "check_table_keys",
            "file_number", "file_choice", "as_load"]
@@ -291,3 +292,42 @@ def file_choice(value: Any, choices: tuple[str, ...], path: str, what: str) -> s
         raise KeyPathError(path, f"unknown {what} {short_text(value)} (expected one of "
                                  f"{', '.join(map(repr, choices))}{hint})")
     return value
+
+
+def read_text_file(path: Any, kind: str, error: type[Exception], max_bytes: int) -> tuple[str, str]:
+    """``(source, text)`` of an input file (mechanism, study, measurements), read once with
+    errors that name the file: missing, a directory, unreadable, larger than ``max_bytes``, or
+    not UTF-8 (a leading byte-order mark, as Windows editors write, is accepted).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+    kind : str
+        What the file should be, for the messages (``"mechanism file"``).
+    error : type of Exception
+        The error raised, with a one-line message starting with the file name.
+    max_bytes : int
+        Largest size accepted.
+
+    Returns
+    -------
+    (str, str)
+        The file name as given and its text.
+    """
+    src = os.fspath(path)
+    try:
+        with open(src, "rb") as fh:
+            raw = fh.read(max_bytes + 1)
+    except FileNotFoundError:
+        raise error(f"{src}: file not found") from None
+    except IsADirectoryError:
+        raise error(f"{src}: is a directory, not a {kind}") from None
+    except OSError as exc:
+        raise error(f"{src}: cannot read file ({exc.strerror or exc})") from None
+    if len(raw) > max_bytes:
+        raise error(f"{src}: file too large for a {kind} (more than {max_bytes} bytes)")
+    try:
+        return src, raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise error(f"{src}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None

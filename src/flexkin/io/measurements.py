@@ -28,7 +28,7 @@ import os
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping
 
-from ..core.validation import short_text, suggest_key
+from ..core.validation import read_text_file, short_text, suggest_key
 
 __all__ = ["MeasurementError", "MeasurementRow", "Measurements", "read_measurements", "measurements_from_rows",
            "DEFAULT_SIGMA", "COLUMNS"]
@@ -227,22 +227,7 @@ def read_measurements(path: str | os.PathLike[str]) -> Measurements:
     MeasurementError
         For an unreadable file or any bad row (one line naming the row and the column).
     """
-    src = os.fspath(path)
-    try:
-        with open(src, "rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
-    except FileNotFoundError:
-        raise MeasurementError(f"{src}: file not found") from None
-    except IsADirectoryError:
-        raise MeasurementError(f"{src}: is a directory, not a measurement file") from None
-    except OSError as exc:
-        raise MeasurementError(f"{src}: cannot read file ({exc.strerror or exc})") from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise MeasurementError(f"{src}: file too large for a measurement file (more than {MAX_FILE_BYTES} bytes)")
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise MeasurementError(f"{src}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
+    src, text = read_text_file(path, "measurement file", MeasurementError, MAX_FILE_BYTES)
     return parse_measurements(text, src)
 
 

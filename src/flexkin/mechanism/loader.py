@@ -59,7 +59,7 @@ from pathlib import Path
 from typing import Any
 
 from flexkin.core.validation import (KeyPathError, check_angle_deg, check_table_keys, file_choice, file_number,
-                                     short_text, type_name)
+                                     read_text_file, short_text, type_name)
 from flexkin.errors import FlexkinWarning, MechanismError
 from flexkin.mechanism.joints import JOINTS
 from flexkin.mechanism.plausibility import check_mechanism_data
@@ -459,21 +459,7 @@ def load_mechanism(path: str | os.PathLike[str]) -> Mechanism:
         raise MechanismError(f"{src!r}: invalid file name (contains a NUL character)")
     if not src:
         raise MechanismError("'': empty file name")
-    try:
-        with open(src, "rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
-    except FileNotFoundError:
-        raise MechanismError(f"{src}: file not found") from None
-    except IsADirectoryError:
-        raise MechanismError(f"{src}: is a directory, not a mechanism file") from None
-    except OSError as exc:
-        raise MechanismError(f"{src}: cannot read file ({exc.strerror or exc})") from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise MechanismError(f"{src}: file too large for a mechanism file (more than {MAX_FILE_BYTES} bytes)")
-    try:
-        text = raw.decode("utf-8-sig")  # a leading byte-order mark (Windows editors) is accepted
-    except UnicodeDecodeError as exc:
-        raise MechanismError(f"{src}: not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
+    src, text = read_text_file(src, "mechanism file", MechanismError, MAX_FILE_BYTES)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

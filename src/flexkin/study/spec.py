@@ -27,8 +27,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..core.validation import (MAX_MODE_LIMIT, KeyPathError, check_max_mode, check_table_keys, file_number, short_text,
-                               suggest_key, type_name)
+from ..core.validation import (MAX_MODE_LIMIT, KeyPathError, check_max_mode, check_table_keys, file_number,
+                               read_text_file, short_text, suggest_key, type_name)
 from . import grid as _grid
 from .evaluate import METRICS, ROW_VERSION, DesignTask
 
@@ -398,22 +398,9 @@ def load_study(path: str | os.PathLike[str]) -> StudySpec:
     StudyError
         With one message naming the file, the key and the problem.
     """
-    src = os.fspath(path)
+    src, text = read_text_file(path, "study file", StudyError, MAX_FILE_BYTES)
     try:
-        with open(src, "rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
-    except FileNotFoundError:
-        raise StudyError(f"{src}: file not found") from None
-    except IsADirectoryError:
-        raise StudyError(f"{src}: is a directory, not a study file") from None
-    except OSError as e:
-        raise StudyError(f"{src}: cannot read file ({e.strerror or e})") from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise StudyError(f"{src}: file too large for a study file")
-    try:
-        data = tomllib.loads(raw.decode("utf-8-sig"))
-    except UnicodeDecodeError as e:
-        raise StudyError(f"{src}: not a UTF-8 text file ({e.reason} at byte {e.start})") from None
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise StudyError(f"{src}: malformed TOML: {e}") from None
     except (RecursionError, ValueError) as e:
