@@ -6,9 +6,9 @@ import json
 import math
 import tomllib
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
-from .text import fmt_value
+from .text import fmt_value, rms_text
 
 __all__ = ["write_calibrated_toml", "calibrated_text", "write_report", "markdown"]
 
@@ -36,7 +36,7 @@ def calibrated_text(res, mechanism_path: str | Path) -> str:
     by = {p.key: p.value for p in res.parameters}
     values = [by[p.name] for p in params]
     note = (f"calibrated by flexkin calibrate from {res.source} (fitted: {', '.join(keys)}; "
-            f"RMS after: {_rms_text(res.rms_after)})")
+            f"RMS after: {rms_text(res.rms_after, named=False)})")
     return calibrated_toml(text, raw, params, values, note)
 
 
@@ -56,19 +56,6 @@ def write_calibrated_toml(res, mechanism_path: str | Path, out: str | Path) -> P
     out = Path(out)
     out.write_text(calibrated_text(res, mechanism_path), encoding="utf-8")
     return out
-
-
-def _rms_text(d: dict[str, Any]) -> str:
-    parts = []
-    if d.get("xy") is not None:
-        parts.append(f"{d['xy'] * 1e3:.2f} mm")
-    if d.get("theta_deg") is not None:
-        parts.append(f"{d['theta_deg']:.2f} deg")
-    if d.get("u") is not None:
-        parts.append(f"inputs {d['u'] * 1e3:.2f} mm")
-    if d.get("u_deg") is not None:
-        parts.append(f"inputs {d['u_deg']:.2f} deg")
-    return ", ".join(parts) or "-"
 
 
 def _row_err(r, which: str) -> str:
@@ -119,8 +106,8 @@ def markdown(res, figure: str | None = None, command: str = "") -> str:
         lab = r.label + (f" — **outlier**: {r.reason}" if r.outlier else "") + (f" ({r.note})" if r.note else "")
         md.append(f"| {r.index} | {r.kind} | {lab} | {r.solution if r.solution is not None else '–'} "
                   f"({r.modes or '–'}) | {_row_err(r, 'before')} | {_row_err(r, 'after')} | {_row_err(r, 'loo')} |")
-    md += ["", f"RMS over the fitted rows: before {_rms_text(res.rms_before)}; after {_rms_text(res.rms_after)}; "
-               f"leave-one-out {_rms_text(res.loo_rms)}.", ""]
+    md += ["", f"RMS over the fitted rows: before {rms_text(res.rms_before, named=False)}; after {rms_text(res.rms_after, named=False)}; "
+               f"leave-one-out {rms_text(res.loo_rms, named=False)}.", ""]
     if res.message:
         md += [f"Note: {res.message}.", ""]
     if figure:

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["result_table", "fmt_value"]
+__all__ = ["result_table", "fmt_value", "rms_text"]
 
 
 def fmt_value(v: float | None, unit: str) -> str:
@@ -33,17 +33,23 @@ def _q(r, which: str) -> str:
     return " ".join(parts) + (" mm" if "m" in r.units else "")
 
 
-def _rms_line(name: str, d: dict[str, Any]) -> str:
+def rms_text(d: dict[str, Any], named: bool = True) -> str:
+    """RMS residuals ``d`` (keys ``xy`` m, ``theta_deg``, ``u`` m, ``u_deg``) as one phrase in
+    mm and deg, each part named (``position``, ``orientation``) when ``named``; ``-`` if empty."""
     parts = []
     if d.get("xy") is not None:
-        parts.append(f"position {d['xy'] * 1e3:.2f} mm")
+        parts.append(("position " if named else "") + f"{d['xy'] * 1e3:.2f} mm")
     if d.get("theta_deg") is not None:
-        parts.append(f"orientation {d['theta_deg']:.2f} deg")
+        parts.append(("orientation " if named else "") + f"{d['theta_deg']:.2f} deg")
     if d.get("u") is not None:
         parts.append(f"inputs {d['u'] * 1e3:.2f} mm")
     if d.get("u_deg") is not None:
         parts.append(f"inputs {d['u_deg']:.2f} deg")
-    return f"  {name:<22} " + (", ".join(parts) if parts else "-")
+    return ", ".join(parts) or "-"
+
+
+def _rms_line(name: str, d: dict[str, Any]) -> str:
+    return f"  {name:<22} " + rms_text(d)
 
 
 def result_table(res) -> str:
