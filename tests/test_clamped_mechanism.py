@@ -66,6 +66,14 @@ def oracle_ik(name: str):
     return O.oracle_ik(m, CASES[name][1], load=m.load, **ORACLE_QUICK)
 
 
+def sample(solutions, n: int = 110):
+    """Every solution, or every k-th one when there are more than ``n`` (they are sorted by
+    d-modes, so every d-mode combination with several solutions is represented): the default
+    run's time for the per-solution ODE and stability checks."""
+    sols = tuple(solutions)
+    return sols if len(sols) <= n else sols[::math.ceil(len(sols) / n)]
+
+
 def shoot(rod):
     """Integrate the rod from its clamp (x, y, theta, m) with its tip force and base moment."""
     f = np.asarray(rod.tip_force, float)
@@ -168,7 +176,7 @@ def test_ik_solutions_match_the_ode(name):
     res = flex_ik(name)
     assert res.solutions
     m = mech(name)
-    for s in res.solutions:
+    for s in sample(res.solutions):
         for leg, rod in zip(m.legs, s.rods):
             assert rod.joint == leg.joint
             if leg.joint == "pinned":
@@ -255,7 +263,8 @@ def test_stability_against_the_oracle(name):
     m = mech(name)
     res = flex_ik(name)
     agree = skipped = 0
-    for s in res.solutions:
+    sols = sample(res.solutions)
+    for s in sols:
         r = S.solution_stability(m, s, m.load)
         if not r.converged or abs(r.min_eig) < 1e-3 or s.stable is None:
             skipped += 1
@@ -263,8 +272,8 @@ def test_stability_against_the_oracle(name):
         assert s.stable == r.stable, (s.mode_label, s.inputs, s.stability_index, r.index, r.min_eig)
         assert s.stability_index == r.index, (s.mode_label, s.inputs, s.stability_index, r.index)
         agree += 1
-    record(f"stability {name}", f"{agree} agree, {skipped} unresolved")
-    assert agree >= max(1, len(res.solutions) - skipped) and agree >= len(res.solutions) // 2
+    record(f"stability {name}", f"{agree} agree, {skipped} unresolved, of {len(sols)} checked ({len(res.solutions)} solutions)")
+    assert agree >= max(1, len(sols) - skipped) and agree >= len(sols) // 2
 
 
 # ======================================================================================
@@ -394,7 +403,7 @@ def test_ik_winding_and_d_mode_match_the_integrated_shapes(name):
     res = flex_ik(name)
     assert res.max_winding == 1
     n = 0
-    for s in res.solutions:
+    for s in sample(res.solutions):
         for leg, rod in zip(m.legs, s.rods):
             if leg.joint != "clamped":
                 assert rod.winding is None
