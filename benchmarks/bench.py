@@ -6,8 +6,9 @@ Run::
     python benchmarks/bench.py [--repeat N] [--quick] [--json PATH] [--only GROUP ...]
 
 ``--only`` runs the named groups of rows: ``cli`` (whole-process IK and calibrate), ``ik``, ``fk``,
-``continuation``, ``workspace``, ``extra`` (verification, explorer, Cosserat), ``oracle`` (the
-``ik`` group runs too when a later group needs its results).
+``continuation``, ``workspace``, ``extra`` (verification, explorer, Cosserat), ``oracle``,
+``clamped`` (IK and FK of the mechanisms with clamped legs, issue 25; minutes) (the ``ik`` group
+runs too when a later group needs its results).
 
 Every row reports the median, min and max wall-clock time of ``N`` runs after one warm-up run
 and the median CPU time (all threads of the process, and for whole-process rows of the child; on
@@ -24,8 +25,8 @@ equal completeness: the row says whether flexkin's solution set contains every o
 (same pose and tip forces; oracle solutions with an "extreme" rod outside flexkin's documented
 scope are not required).
 
-``--quick`` runs 2 repeats and skips the FK rows, the whole-process workspace, the oracles
-and the Cosserat refinement.
+``--quick`` runs 2 repeats and skips the FK rows, the whole-process workspace, the oracles,
+the Cosserat refinement and the clamped rows.
 """
 
 from __future__ import annotations
@@ -279,6 +280,44 @@ def extra_rows(rep: int, rows: list[Row], ctx: dict, quick: bool) -> None:
                         2.0, unit="s", note=f"params from the {which}"))
 
 
+def clamped_rows(rep: int, rows: list[Row], ctx: dict) -> None:
+    """Issue 25's rows: IK and FK of the two mechanisms with rods clamped to the platform, and the
+    ratio to the IK oracle (``oracle_ik`` in its quick test configuration) on the mixed one."""
+    import flexkin
+    import ik_oracle as IO
+
+    n = max(1, rep // 2)
+    fk_cases = []
+    for file, pose in (("unit_3pff.toml", (0.0, 0.0, math.radians(20))), ("mixed_clamped.toml", (0.02, -0.05, 0.1))):
+        mech = flexkin.load_mechanism(EXAMPLES / file)
+        t = _times(lambda: flexkin.ik(mech, pose), n)
+        cpu = _cpu()
+        res = flexkin.ik(mech, pose)
+        rows.append(Row(f"full IK in-process, `examples/{file}` at {tuple(round(v, 4) for v in pose)}", t, cpu, 0.150,
+                        unit="s", note=f"{len(res)} solutions, complete={res.complete}"))
+        ctx[f"ik_{file}"] = res
+        ctx[f"ik_{file}_s"] = statistics.median(t)
+        # the FK at the inputs of the least loaded IK solution (the test's default pick)
+        s = min(res.solutions, key=lambda q: max(math.hypot(*r.tip_force) for r in q.rods))
+        fk_cases.append((file, mech, tuple(s.inputs)))
+    for file, mech, u in fk_cases:
+        t = _times(lambda: flexkin.fk(mech, u), 1)
+        cpu = _cpu()
+        res = flexkin.fk(mech, u)
+        rows.append(Row(f"full FK in-process, `examples/{file}` (inputs of the least loaded IK solution)", t, cpu, 2.0,
+                        unit="s", note=f"{len(res)} solutions, complete={res.complete}"))
+    mech = flexkin.load_mechanism(EXAMPLES / "mixed_clamped.toml")
+    pose = (0.02, -0.05, 0.1)
+    med = ctx["ik_mixed_clamped.toml_s"]
+    t0 = time.perf_counter()
+    sols = IO.oracle_ik(mech, pose, load=mech.load, max_mode=2, max_turn=math.pi, n_starts=300, seed=3)
+    t_or = time.perf_counter() - t0
+    rows.append(Row("oracle ratio, IK `examples/mixed_clamped.toml`: oracle_ik (quick test configuration) / flexkin",
+                    [t_or], [], unit="s", note=f"ratio {t_or / med:.1f}x; oracle {len(sols)} solutions (rods turning "
+                                               f"by at most pi), flexkin {len(ctx['ik_mixed_clamped.toml'])}",
+                    extra={"ratio": t_or / med, "flexkin_s": med, "oracle_n": len(sols)}))
+
+
 def oracle_rows(rows: list[Row], ctx: dict) -> None:
     import flexkin
     import fk_oracle as FO
@@ -328,7 +367,7 @@ def oracle_rows(rows: list[Row], ctx: dict) -> None:
 
 
 #: the groups of rows, in the order they run (``--only``)
-GROUPS = ("cli", "ik", "fk", "continuation", "workspace", "extra", "oracle")
+GROUPS = ("cli", "ik", "fk", "continuation", "workspace", "extra", "oracle", "clamped")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -368,6 +407,8 @@ def main(argv: list[str] | None = None) -> int:
         extra_rows(rep, rows, ctx, a.quick)
     if "oracle" in want and not (a.quick or a.no_oracle):
         oracle_rows(rows, ctx)
+    if "clamped" in want and not a.quick:
+        clamped_rows(rep, rows, ctx)
     cores = os.cpu_count()
     load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
     print(f"flexkin {flexkin.__version__} benchmark: {cores} cores, load average {load[0]:.1f} / {load[1]:.1f} / "

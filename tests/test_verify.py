@@ -50,9 +50,9 @@ def ode_check(rod: RodState, samples: int = 48) -> dict:
     """Integrate one rod (world frame, SI) with scipy from its clamp, restarting tangent and moment
     from the reported shape at the nodes of segments of ``lambda L <= 3``; returns the tip's
     position mismatch / L and the largest tangent and moment (/ (EI/L)) mismatch at the
-    segments' ends, the inflection count (1 + sign changes of the
-    moment strictly inside, moments below 1e-8 of the largest counting as zero) and the
-    tangent's total turning (rad)."""
+    segments' ends, the inflection count on (0, L] (the sign changes of the moment strictly
+    inside, moments below 1e-8 of the largest counting as zero, plus 1 for a pinned tip: a
+    clamped tip is not an inflection, SPEC §2) and the tangent's total turning (rad)."""
     L, EI = rod.length, rod.EI
     F = np.array(rod.tip_force)
     lam = math.sqrt(np.hypot(*F) * L * L / EI)
@@ -81,7 +81,7 @@ def ode_check(rod: RodState, samples: int = 48) -> dict:
     m = np.concatenate(ms)
     eps = 1e-8 * np.max(np.abs(m))
     sig = np.sign(m[np.abs(m) > eps])
-    count = 1 + int(np.sum(sig[1:] != sig[:-1]))
+    count = (0 if rod.joint == "clamped" else 1) + int(np.sum(sig[1:] != sig[:-1]))
     th = np.concatenate(ths)
     return {"gap": gap, "count": count, "turning": float(np.ptp(th)), "lam": lam}
 

@@ -53,7 +53,12 @@ def _add_time_budget(k) -> None:
 def _add_common_kinematics(k, name: str) -> None:
     k.add_argument("--load", nargs=3, type=cli_args.finite, metavar=("FX", "FY", "MZ"),
                    help="load wrench at P [N, N, N m] (default: the file's [load] or zero)")
-    k.add_argument("--max-mode", type=cli_args.max_mode, default=2, help="largest d-mode of any rod (default 2)")
+    k.add_argument("--max-mode", type=cli_args.max_mode, default=2,
+                   help="largest d-mode of any rod: its inflection points on (0, L]; a clamped tip is not one "
+                        "(default 2)")
+    k.add_argument("--max-winding", type=cli_args.max_winding, default=1, metavar="W",
+                   help="largest |winding| of a rod clamped to the platform: its total turning is delta + 2 pi w "
+                        "with delta in (-pi, pi] (default 1)")
     k.add_argument("--quiet", "-q", action="store_true", help="no progress display on stderr")
 
 
@@ -505,7 +510,7 @@ def _kinematics(a, mech):
 
         pose = (a.pose[0], a.pose[1], math.radians(a.pose[2]))
         with ProgressBar("flexkin ik", enabled=_progress(a)) as bar:
-            res = ik(mech, pose, load=a.load, max_mode=a.max_mode, time_budget=getattr(a, "time_budget", None),
+            res = ik(mech, pose, load=a.load, max_mode=a.max_mode, max_winding=a.max_winding, time_budget=getattr(a, "time_budget", None),
                      progress=bar, margin=getattr(a, "margin", False))
         what = f"inverse kinematics at pose ({a.pose[0]:g} m, {a.pose[1]:g} m, {a.pose[2]:g} deg)"
         return res, what
@@ -522,7 +527,7 @@ def _kinematics(a, mech):
             _angle_arg(v, f"--inputs U{i + 1}")
     u = [float(leg.from_display(v)) for v, leg in zip(a.inputs, mech.legs)]
     with ProgressBar("flexkin fk", enabled=_progress(a)) as bar:
-        res = fk(mech, u, load=a.load, max_mode=a.max_mode, time_budget=getattr(a, "time_budget", None),
+        res = fk(mech, u, load=a.load, max_mode=a.max_mode, max_winding=a.max_winding, time_budget=getattr(a, "time_budget", None),
                  progress=bar, margin=getattr(a, "margin", False))
     units = [leg.input_unit for leg in mech.legs]
     what = "forward kinematics at inputs (" + ", ".join(f"{v:g} {un}" for v, un in zip(a.inputs, units)) + ")"
@@ -611,7 +616,8 @@ def _cmd_kinematics(a) -> int:
         print(_dump(d))
     else:
         load = ", ".join(f"{v:g}" for v in res.load)
-        print(f"{mech.name}: {what}, load ({load}), d-modes <= {res.max_mode}: {len(res)} solution(s) "
+        scope = f"d-modes <= {res.max_mode}" + (f", |winding| <= {res.max_winding}" if "clamped" in mech.joints else "")
+        print(f"{mech.name}: {what}, load ({load}), {scope}: {len(res)} solution(s) "
               f"in {res.elapsed:.2f} s" + ("" if res.complete else " (search incomplete)"))
         if len(res):
             print("per d-mode combination: " + ", ".join(f"{k}: {v}" for k, v in sorted(res.by_modes().items())))

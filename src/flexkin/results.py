@@ -210,7 +210,8 @@ class IKDiagnostics:
     convergences, whether the global search completed, the size of a singular continuum
     (0 when none) and the equilibria found beyond the numerical scope and not reported (with a
     pinned rod beyond it; among them, with a rod near straight under tension beyond it, which
-    makes the result incomplete)."""
+    makes the result incomplete), and ``force_limit``: the curve polylines of clamped legs
+    stopped at the search's force limit, which makes the result incomplete."""
 
     branches: tuple[int, ...] = ()
     candidates: int = 0
@@ -219,6 +220,7 @@ class IKDiagnostics:
     continuum: int = 0
     out_of_scope: int = 0
     out_of_scope_taut: int = 0
+    force_limit: int = 0
 
 
 @dataclass(frozen=True)
@@ -228,7 +230,9 @@ class FKDiagnostics:
     pinned) or rod combinations (pose lattice, any leg clamped) examined, singular continuum,
     the pose lattice's spacing (``lattice_h`` in m and ``lattice_n_theta`` orientations per
     turn; 0 for the branch-and-bound) and the equilibria found beyond the numerical scope and not
-    reported (as in :class:`IKDiagnostics`)."""
+    reported (as in :class:`IKDiagnostics`); ``force_limit`` is 1 when a clamped leg's rods
+    reach the search's force limit at poses the other legs reach (the result is then
+    incomplete)."""
 
     candidates: int = 0
     converged: int = 0
@@ -239,6 +243,7 @@ class FKDiagnostics:
     lattice_n_theta: int = 0
     out_of_scope: int = 0
     out_of_scope_taut: int = 0
+    force_limit: int = 0
 
 
 @dataclass(frozen=True)
@@ -303,6 +308,8 @@ class KinematicsResult(Result):
     curves : list of LegCurve or None
         The geometric-condition curves of each leg (IK, :func:`flexkin.solve.curves.leg_curves`),
         else ``None``.
+    max_winding : int
+        Largest ``|winding|`` of a clamped rod searched (SPEC §2).
     """
 
     problem: str = "ik"
@@ -311,6 +318,7 @@ class KinematicsResult(Result):
     load: tuple[float, float, float] = (0.0, 0.0, 0.0)
     max_mode: int = 2
     curves: Any = field(default=None, repr=False)
+    max_winding: int = 1
     _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -359,6 +367,7 @@ class KinematicsResult(Result):
             "mechanism": self.mechanism.name,
             "load": list(self.load),
             "max_mode": self.max_mode,
+            "max_winding": self.max_winding,
         }
         if self.problem == "ik":
             d["pose"] = [self.given[0], self.given[1], float(np.degrees(self.given[2]))]
@@ -391,7 +400,8 @@ class KinematicsResult(Result):
 
     def table(self, feasibility: bool = False) -> str:
         """Human-readable table of the solutions (with a ``margin`` column when the margins were
-        computed, e.g. ``ik(..., margin=True)``).
+        computed, e.g. ``ik(..., margin=True)``, and a ``windings`` column -- SPEC §2, ``-`` for a
+        pinned rod -- when a leg is clamped).
 
         Parameters
         ----------
@@ -404,9 +414,11 @@ class KinematicsResult(Result):
         str
         """
         units = [leg.input_unit for leg in self.mechanism.legs]
+        clamped = [leg.joint == "clamped" for leg in self.mechanism.legs]
+        with_winding = any(clamped)
         with_margin = bool(self.solutions) and all(s.stability is not None and not np.isnan(s.stability.margin)
                                                    for s in self.solutions)
-        head = (f"{'#':>3} {'modes':>5} {'x [m]':>10} {'y [m]':>10} {'th [deg]':>9} "
+        head = (f"{'#':>3} {'modes':>5}" + (f" {'windings':>8}" if with_winding else "") + f" {'x [m]':>10} {'y [m]':>10} {'th [deg]':>9} "
                 + " ".join(f"{'u' + str(i + 1) + ' [' + u + ']':>11}" for i, u in enumerate(units))
                 + f" {'energy [J]':>11} {'stable':>6}" + (f" {'margin':>9}" if with_margin else "")
                 + f" {'residual':>9}")
@@ -418,7 +430,9 @@ class KinematicsResult(Result):
             u = s.inputs_display()
             st = "?" if s.stable is None else ("yes" if s.stable else "no")
             mg = f" {s.stability.margin:>9.3g}" if with_margin else ""
-            row = (f"{s.id:>3} {s.mode_label:>5} {s.pose[0]:>10.5f} {s.pose[1]:>10.5f} {np.degrees(s.pose[2]):>9.3f} "
+            wd = (" " + " ".join("-" if r.winding is None else f"{r.winding:+d}" for r in s.rods).rjust(8)
+                  if with_winding else "")
+            row = (f"{s.id:>3} {s.mode_label:>5}{wd} {s.pose[0]:>10.5f} {s.pose[1]:>10.5f} {np.degrees(s.pose[2]):>9.3f} "
                    + " ".join(f"{v:>11.5f}" for v in u)
                    + f" {s.energy:>11.4e} {st:>6}{mg} {s.residual:>9.1e}")
             if f is not None:

@@ -21,8 +21,9 @@ evaluates, all scaled to O(1) as in :mod:`flexkin.system`:
   (rad), and its tip moment enters the platform's moment balance;
 * the platform is in equilibrium with the load: ``sum n_i = F`` (``/ F_ref``) and
   ``sum (B_i - P) x n_i + sum m_i(L) = M_z`` (``/ (F_ref L_ref)``; Eq. 15, SPEC §2);
-* every rod's d-mode equals the inflection count of the integrated shape: 1 + the sign
-  changes of the bending moment strictly inside the rod (SPEC §2).  Moments below
+* every rod's d-mode equals the inflection count on (0, L] of the integrated shape (SPEC §2):
+  the sign changes of the bending moment strictly inside the rod, plus 1 for a pinned tip (a
+  clamped tip is not an inflection).  Moments below
   :data:`MOMENT_RTOL` times the rod's largest moment are treated as zero, so an inflection
   at the clamp does not count, and a rod within that resolution of an end inflection (or
   flagged ``mode_boundary``) may carry either neighbouring label.
@@ -267,8 +268,8 @@ class Verification:
     error : (n,) float
         The largest scaled residual (``inf`` when an integration failed).
     inflections : (n, 3) int
-        d-mode of each rod read from the integrated shape (1 + sign changes of the moment
-        strictly inside the rod; -1 when the integration failed).
+        d-mode of each rod read from the integrated shape (sign changes of the moment strictly
+        inside the rod, plus 1 for a pinned tip; -1 when the integration failed).
     modes_agree : (n, 3) bool
         The reported d-mode agrees with ``inflections`` (to the end tolerance, module docstring).
     condition : (n,) float
@@ -419,7 +420,7 @@ def verify_solutions(system: System, X: NDArray, charts: NDArray, load: NDArray,
         eps = MOMENT_RTOL * mmax.reshape(n, 3)
         end = (np.abs(w["base_moment"] * L / EI) <= eps) | (system.clamped[None]
                                                              & (np.abs(w["tip_moment"] * L / EI) <= eps))
-    infl = np.where(counts >= 0, counts + 1, -1)
+    infl = np.where(counts >= 0, counts + np.where(system.clamped[None], 0, 1), -1)
     agree = (counts >= 0) & (modes >= infl - bnd) & (modes <= infl + end)
     verified = (err <= VERIFY_TOL) & np.all(agree, axis=1)
     return Verification(verified, err, infl, agree, newton_condition(system, X, charts, load, fixed))

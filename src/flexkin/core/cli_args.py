@@ -13,9 +13,9 @@ import argparse
 import math
 from typing import Callable
 
-from .validation import MAX_MODE_LIMIT
+from .validation import MAX_MODE_LIMIT, MAX_WINDING_LIMIT
 
-__all__ = ["finite", "positive", "integer_in", "max_mode", "count"]
+__all__ = ["finite", "positive", "integer_in", "max_mode", "max_winding", "count"]
 
 
 def finite(text: str) -> float:
@@ -87,5 +87,6 @@ def integer_in(lo: int, hi: int) -> Callable[[str], int]:
 
 #: the largest d-mode searched: an integer from 1 to MAX_MODE_LIMIT
 max_mode = integer_in(1, MAX_MODE_LIMIT)
+max_winding = integer_in(0, MAX_WINDING_LIMIT)
 #: a number of steps, points or jobs: an integer from 1 to 100000 (core.validation.check_count)
 count = integer_in(1, 100_000)

@@ -14,13 +14,15 @@ from typing import Any, Mapping
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["read_text_file", "as_triple", "as_pair", "check_max_mode", "check_budget", "check_positive", "check_count",
+__all__ = ["read_text_file", "as_triple", "as_pair", "check_max_mode", "check_max_winding", "check_budget", "check_positive", "check_count",
            "check_angle_deg", "angle_note", "check_grid", "short_text", "MAX_MODE_LIMIT", "ANGLE_LIMIT_DEG",
            "MAX_GRID_POINTS", "KeyPathError", "type_name", "suggest_key", "key_text", "check_table_keys",
            "file_number", "file_choice", "as_load"]
 
 #: largest d-mode any search accepts
 MAX_MODE_LIMIT = 6
+#: largest |winding| of a clamped rod any search accepts (SPEC §2)
+MAX_WINDING_LIMIT = 4
 #: largest magnitude of an angle given in degrees (files, command line): 2778 turns.  No
 #: orientation or input of a mechanism needs more, and far beyond it an angle loses its meaning
 #: to rounding (at 1e16 deg one unit in the last place exceeds a degree; 1e300 deg is a mistake)
@@ -75,6 +77,14 @@ def check_max_mode(max_mode: Any) -> int:
             or not 1 <= max_mode <= MAX_MODE_LIMIT:
         raise ValueError(f"max_mode must be an integer between 1 and {MAX_MODE_LIMIT}, got {max_mode!r}")
     return int(max_mode)
+
+
+def check_max_winding(max_winding: Any) -> int:
+    """An integer winding bound between 0 and :data:`MAX_WINDING_LIMIT` (clamped rods, SPEC §2)."""
+    if isinstance(max_winding, bool) or not isinstance(max_winding, (int, np.integer)) \
+            or not 0 <= max_winding <= MAX_WINDING_LIMIT:
+        raise ValueError(f"max_winding must be an integer between 0 and {MAX_WINDING_LIMIT}, got {max_winding!r}")
+    return int(max_winding)
 
 
 def check_budget(budget: Any) -> float:

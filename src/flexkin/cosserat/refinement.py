@@ -355,12 +355,13 @@ def _duplicates(prob: _Problem, ends: dict, keys) -> list[int]:
     return sorted(reached[i][1] for i in np.nonzero(hit.any(1))[0])
 
 
-def _modes(m: NDArray[np.float64]) -> int:
-    """1 + sign changes of the bending moment strictly inside the rod (SPEC §2)."""
+def _modes(m: NDArray[np.float64], clamped: bool) -> int:
+    """Inflection points on (0, L] (SPEC §2): the sign changes of the bending moment strictly
+    inside the rod, plus 1 for a pinned tip (a clamped tip is not an inflection)."""
     inner = m[1:-1]
     thr = 1e-9 * max(float(np.max(np.abs(m))), 1e-300)
     sgn = np.sign(inner[np.abs(inner) > thr])
-    return int(1 + np.count_nonzero(sgn[1:] != sgn[:-1]))
+    return int((0 if clamped else 1) + np.count_nonzero(sgn[1:] != sgn[:-1]))
 
 
 def _final_data(prob: _Problem, keys, zs, ps, stability, elements, tol) -> dict:
@@ -416,7 +417,7 @@ def _final_data(prob: _Problem, keys, zs, ps, stability, elements, tol) -> dict:
         strains[J, :, 1] = np.max(np.abs(shp.shear_strain), -1)
         for jj, j in enumerate(J):
             for i in range(3):
-                modes[j, i] = _modes(shp.moment[jj, i])
+                modes[j, i] = _modes(shp.moment[jj, i], bool(md.clamped[i]))
         if not stability:
             continue
         fields = np.stack([shp.theta, shp.force[..., 0], shp.force[..., 1]], -1)  # (|J|, 3, npts, 3)

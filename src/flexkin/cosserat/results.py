@@ -49,7 +49,8 @@ class RefinedRod:
     max_shear_strain : float
         Largest ``|v_y|`` along the rod (dimensionless).
     mode : int
-        d-mode: 1 + sign changes of the bending moment strictly inside the rod (SPEC §2).
+        d-mode: inflection points on (0, L] (SPEC §2): sign changes of the bending moment
+        strictly inside the rod, plus 1 for a pinned tip.
     steps : int
         Runge–Kutta steps the rod was integrated with (:mod:`flexkin.cosserat.rod`).
     """

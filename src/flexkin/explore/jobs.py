@@ -214,7 +214,7 @@ def overlay(ws, alpha: float = 0.35) -> dict[str, list]:
     if reached.any():
         labels = (modes[..., 0].astype(int) * 100 + modes[..., 1].astype(int) * 10 + modes[..., 2].astype(int))
         for lab in np.unique(labels[reached]):
-            img[reached & (labels == lab)] = _rgba(mode_color(str(int(lab))), alpha)
+            img[reached & (labels == lab)] = _rgba(mode_color(f"{int(lab):03d}"), alpha)  # clamped rods: d-mode 0
     img[np.asarray(mp.boundary_fk, dtype=bool)] = _rgba(FK_COLOR, 0.9)
     img[np.asarray(mp.boundary_ik, dtype=bool)] = _rgba(IK_COLOR, 0.9)
     dx = float(x[1] - x[0]) if nx > 1 else 1e-3

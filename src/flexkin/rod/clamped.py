@@ -167,6 +167,6 @@ def clamped_rod_roots(xt: float, yt: float, tht: float, max_mode: int, tol: floa
         for r in range(len(Z)):
             wrench_eval(Z[r, 0], Z[r, 1], Z[r, 2], q[r], g[r])
         modes = np.array([wrench_mode(z[0], z[1], z[2], 1e-9)[0] for z in Z])
-        Z = Z[in_wrench_scope(Z, q[:, TH], modes, max_mode)]
+        Z = Z[in_wrench_scope(q[:, TH], modes, max_mode, 1)]
     Z = Z[distinct_shapes(Z)]
     return Z, {"starts": int(len(ok)), "converged": int(np.count_nonzero(ok))}

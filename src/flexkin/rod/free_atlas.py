@@ -8,11 +8,12 @@ rods are therefore sampled in the elliptic charts of paper §2, where ``k'`` is 
 
 * **libration** (inflectional elastica): ``(v, phi_e, s)`` with ``k = tanh v`` (``k' = sech v``),
   tip amplitude ``phi_e`` in ``[-pi/2, pi/2]`` and span ``s = phi_e - phi_s`` in
-  ``(0, q_max pi]``; the arc ``[phi_s, phi_e]`` of the elastica, Eqs. (9), (12), (13) with
+  ``(0, (q_max + 1) pi]`` (at most ``q_max`` inflections inside); the arc ``[phi_s, phi_e]`` of the elastica, Eqs. (9), (12), (13) with
   ``phi_2 = phi_e`` free (paper §8);
 * **rotation** (non-inflectional): ``(nu, chi_0, d_chi)`` with modulus ``kappa = 1/k = tanh nu``
   (``kappa' = sech nu``), ``chi_0`` in ``[0, pi]`` and signed span ``d_chi`` in
-  ``[-q_max pi, q_max pi]`` (the tangent turns by ``2 d_chi``).
+  ``[-c, c]``, ``c = (w_max + 1/2) pi + 1/4`` (the tangent turns by ``2 d_chi``: every winding
+  ``|w| <= w_max`` of SPEC §2 with a margin).
 
 Every node stores the unit rod's tip position, force, tip angle and tip moment, its base
 wrench (its coordinates in the wrench chart, where the solvers' Newton runs), its d-mode and
@@ -44,19 +45,21 @@ def _log_sech_nodes(n_uniform: int, n_log: int, kp_min: float = 1e-6) -> np.ndar
 
 
 def libration_grid(max_mode: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Nodes ``(v, phi_e, s)`` of the libration atlas (``v`` symmetric about 0)."""
+    """Nodes ``(v, phi_e, s)`` of the libration atlas (``v`` symmetric about 0) for rods with
+    up to ``max_mode`` inflections inside."""
     vp = _log_sech_nodes(31, 12)
     v = np.concatenate([-vp[::-1], vp[1:]])
     phie = np.linspace(-HALF_PI, HALF_PI, 33)
-    s = np.linspace(0.0, max_mode * math.pi, 32 * max_mode + 1)[1:]
+    s = np.linspace(0.0, (max_mode + 1) * math.pi, 32 * (max_mode + 1) + 1)[1:]
     return v, phie, s
 
 
-def rotation_grid(max_mode: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Nodes ``(nu, chi_0, d_chi)`` of the rotation atlas."""
+def rotation_grid(max_winding: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Nodes ``(nu, chi_0, d_chi)`` of the rotation atlas for windings up to ``max_winding``."""
     nu = _log_sech_nodes(30, 10)
     chi0 = np.linspace(0.0, math.pi, 33)
-    dchi = np.linspace(-max_mode * math.pi, max_mode * math.pi, 48 * max_mode + 1)
+    c = (max_winding + 0.5) * math.pi + 0.25
+    dchi = np.linspace(-c, c, 2 * int(math.ceil(24 * c / math.pi)) + 1)
     return nu, chi0, dchi
 
 
@@ -89,7 +92,7 @@ def _lib_node(v, phie, span, out) -> None:
     out[9] = Phi
     lo = math.floor((phis - HALF_PI) / math.pi) + 1
     hi = math.ceil((phie - HALF_PI) / math.pi) - 1
-    out[10] = 1 + max(0, hi - lo + 1)
+    out[10] = max(0, hi - lo + 1)
 
 
 @njit
@@ -108,7 +111,7 @@ def _rot_node(nu, chi0, dchi, out) -> None:
         for q in range(FEATURES):
             out[q] = 0.0
         out[0] = 1.0
-        out[10] = 1
+        out[10] = 0
         return
     lam = kap * Ke
     psi = math.pi - 2.0 * chi0
@@ -125,7 +128,7 @@ def _rot_node(nu, chi0, dchi, out) -> None:
     out[6], out[7] = R * cps, R * sps
     out[8] = 2.0 * sig * Ke * d0
     out[9] = lam
-    out[10] = 1
+    out[10] = 0
 
 
 @njit

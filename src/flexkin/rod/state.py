@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from ..core.geometry2d import rotate
 from .closed_form import mode_of, pinned_chart, standard_chart, to_paper
 from .kernels import CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, EN, FX, FY, M0, ML, NQ, TH, X, Y, eval_rods, profile_batch
+from .wrench_atlas import winding
 
 __all__ = ["RodState", "profiles", "centre_lines"]
 
@@ -32,8 +33,10 @@ class RodState:
     Attributes
     ----------
     mode : int
-        d-mode q: 1 + the number of sign changes of the bending moment strictly inside the
-        rod (for a pinned tip: the number of inflection points on (0, L], SPEC §2).
+        d-mode q: the number of inflection points on (0, L] (SPEC §2).  A pinned tip counts,
+        so a pinned rod's q is 1 + the sign changes of the bending moment strictly inside; a
+        clamped tip does not, so a clamped rod's q is those sign changes alone (a C-shaped rod
+        0, the buckled clamped-clamped arch 2).
     k, psi : float
         Paper parameters (Eqs. 9-13): ``k`` signed like the base moment (``|k| > 1`` for the
         non-inflectional rods a clamped tip allows), ``psi`` (rad) the direction of the tip
@@ -174,6 +177,15 @@ class RodState:
         return float(np.tanh(self.v))
 
     @property
+    def winding(self) -> int | None:
+        """Winding ``w`` of a rod clamped to the platform (SPEC §2): its total turning
+        ``theta(L) - theta(0) = delta + 2 pi w`` with ``delta`` in ``(-pi, pi]``; ``None`` for a
+        pinned tip."""
+        if self.joint != "clamped":
+            return None
+        return int(winding(self.tip_angle - self.clamp_angle))
+
+    @property
     def R(self) -> float:
         """Tip force magnitude (N)."""
         return float(np.hypot(*self.tip_force))
@@ -203,6 +215,7 @@ class RodState:
             "tip_moment": self.tip_moment,
             "energy": self.energy,
             "mode_boundary": self.mode_boundary,
+            **({"winding": self.winding} if self.joint == "clamped" else {}),
         }
 
 

@@ -24,8 +24,9 @@ rod of a clamped leg is one point of it, whatever its shape.  The closed form (p
   closed forms lose digits like ``1e-16 / lambda``, a Taylor series of the rod's ODE
   (Eqs. 5, 7) in the arc length, to machine precision in one step.
 
-The d-mode of a clamped rod is 1 + the number of inflections strictly inside (SPEC §2): the
-points ``phi = pi/2 + j pi`` inside ``(phi1, phi2)`` for a librating rod, none for a rotating one.
+The d-mode of a rod clamped at both ends is the number of inflections strictly inside (SPEC §2;
+a clamped tip is not an inflection): the points ``phi = pi/2 + j pi`` inside ``(phi1, phi2)``
+for a librating rod, none for a rotating one (a C-shaped rod is 0, the buckled arch 2).
 Derivatives with respect to ``(a, b, m0)`` are analytic (chain rule through the elliptic
 integrals' classical derivatives, DLMF 19.4).  Near the separatrix (``|m0| ~ 2 lambda s`` with
 the arc passing close to the saddle) the rod is physically ill-conditioned in this chart.
@@ -340,12 +341,12 @@ def wrench_profile(a: float, b: float, m0: float, s: np.ndarray, out: np.ndarray
 
 @njit
 def wrench_mode(a: float, b: float, m0: float, tol: float) -> tuple[int, bool]:
-    """d-mode (1 + inflections strictly inside) of the rod of base wrench ``(a, b, m0)`` and
+    """d-mode (the inflections strictly inside, SPEC §2) of the rod of base wrench ``(a, b, m0)`` and
     whether an inflection sits at an end to within ``tol`` in ``|cos phi|`` (``mode_boundary``)."""
     psi, c, sh, R = _half_angles(a, b)
     lam = math.sqrt(R)
     if not 0.5 * abs(m0) < lam * sh:
-        return 1, False  # rotating: the curvature never changes sign
+        return 0, False  # rotating: the curvature never changes sign
     mu = m0 / (2.0 * lam)
     k2 = c * c + mu * mu
     kp2 = (sh - abs(mu)) * (sh + abs(mu))
@@ -363,6 +364,6 @@ def wrench_mode(a: float, b: float, m0: float, tol: float) -> tuple[int, bool]:
         lo += 1
     if at_tip and hi == round((phie - HALF_PI) / math.pi):
         hi -= 1
-    mode = 1 + max(0, int(hi - lo + 1))
+    mode = max(0, int(hi - lo + 1))
     boundary = at_base or at_tip
     return mode, boundary

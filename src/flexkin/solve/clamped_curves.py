@@ -30,13 +30,15 @@ from ..core.geometry2d import rotate
 from ..core.geometry2d_kernels import wrap_angle
 from ..rod.slots import EN, FX, FY, ML, NQ, TH, X, Y
 from ..rod.wrench import wrench_eval, wrench_mode
-from ..rod.wrench_atlas import get_wrench_atlas, lambda_max, moment_scale, turning_max
+from ..rod.wrench_atlas import get_wrench_atlas, lambda_max, moment_extra, turning_max
 from .conditions import condition_eval
 from .leg_curve import LegCurve
 
 __all__ = ["clamped_leg_curve"]
 
 TWO_PI = 2.0 * math.pi
+#: turning (rad) traced beyond the winding scope, which is applied exactly to refined solutions
+TURN_MARGIN = 0.5
 MAX_POINTS = 4000
 
 
@@ -76,17 +78,17 @@ def _correct(z, code, p0, p1, tgt, q, gr, J, iters, tol) -> bool:
 
 
 @njit
-def _metric(z, max_mode) -> tuple:
+def _metric(z, mext) -> tuple:
     """Per-coordinate scales of the chart near ``z`` (the atlas' cell sizes grow with the load)."""
     R = math.hypot(z[0], z[1])
     lam = math.sqrt(R)
     sf = 1.0 + R
-    sm = 1.0 + 2.0 * lam + TWO_PI * max_mode
+    sm = 1.0 + 2.0 * lam + mext
     return sf, sf, sm
 
 
 @njit
-def _cell(z, lam_nodes, npsi, nt, max_mode):
+def _cell(z, lam_nodes, npsi, nt, mext):
     """Atlas cell (i, j, k) containing ``z`` (-1 if outside)."""
     R = math.hypot(z[0], z[1])
     lam = math.sqrt(R)
@@ -100,7 +102,7 @@ def _cell(z, lam_nodes, npsi, nt, max_mode):
     if psi < 0.0:
         psi += TWO_PI
     j = int(psi / (TWO_PI / npsi)) % npsi
-    t = z[2] / (2.0 * lam + TWO_PI * max_mode)
+    t = z[2] / (2.0 * lam + mext)
     k = int((t + 1.0) * 0.5 * (nt - 1))
     if k < 0 or k >= nt - 1:
         return -1, -1, -1
@@ -108,19 +110,19 @@ def _cell(z, lam_nodes, npsi, nt, max_mode):
 
 
 @njit
-def _visit(z, lam_nodes, npsi, nt, max_mode, visited) -> None:
+def _visit(z, lam_nodes, npsi, nt, mext, visited) -> None:
     """Mark the cell of ``z`` as traced."""
-    i, j, k = _cell(z, lam_nodes, npsi, nt, max_mode)
+    i, j, k = _cell(z, lam_nodes, npsi, nt, mext)
     if i < 0:
         return
     visited[i, j, k] = True
 
 
 @njit
-def _visit_segment(za, zb, lam_nodes, npsi, nt, max_mode, visited) -> None:
+def _visit_segment(za, zb, lam_nodes, npsi, nt, mext, visited) -> None:
     """Mark every cell the chord ``za -> zb`` passes through (subdivided where it jumps cells)."""
-    ia, ja, ka = _cell(za, lam_nodes, npsi, nt, max_mode)
-    ib, jb, kb = _cell(zb, lam_nodes, npsi, nt, max_mode)
+    ia, ja, ka = _cell(za, lam_nodes, npsi, nt, mext)
+    ib, jb, kb = _cell(zb, lam_nodes, npsi, nt, mext)
     dj = abs(ja - jb)
     dj = min(dj, npsi - dj)
     m = max(abs(ia - ib), dj, abs(ka - kb)) + 1
@@ -133,23 +135,26 @@ def _visit_segment(za, zb, lam_nodes, npsi, nt, max_mode, visited) -> None:
         zc[0] = za[0] + f * (zb[0] - za[0])
         zc[1] = za[1] + f * (zb[1] - za[1])
         zc[2] = za[2] + f * (zb[2] - za[2])
-        _visit(zc, lam_nodes, npsi, nt, max_mode, visited)
+        _visit(zc, lam_nodes, npsi, nt, mext, visited)
 
 
 @njit
-def _in_scope(z, q, max_mode, lam_max, turn_max) -> bool:
+def _in_scope(z, q, max_mode, lam_max, turn_max) -> int:
+    """0 if the rod ``z`` is searched; 1 if its ``lambda L`` is beyond the search's numerical
+    limit ``lam_max``; 2 if it is outside the scope (tangent turning or d-mode)."""
     if math.sqrt(math.hypot(z[0], z[1])) > lam_max * 1.02:
-        return False
+        return 1
     if abs(q[TH]) > turn_max + 1e-9:
-        return False
-    return wrench_mode(z[0], z[1], z[2], 1e-9)[0] <= max_mode
+        return 2
+    return 0 if wrench_mode(z[0], z[1], z[2], 1e-9)[0] <= max_mode else 2
 
 
 @njit
-def _trace_one(z0, direction, code, p0, p1, tgt, max_mode, lam_max, turn_max, out, n_out, visited,
-               lam_nodes, npsi, nt) -> int:
+def _trace_one(z0, direction, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, out, n_out, visited,
+               lam_nodes, npsi, nt, limits) -> int:
     """Trace from the point ``z0`` on the curve along ``direction`` (+1/-1); appends points to
-    ``out`` from ``n_out``; returns the new count (stops at MAX_POINTS total)."""
+    ``out`` from ``n_out``; returns the new count (stops at MAX_POINTS total).  A trace that
+    stops at the ``lambda L`` limit is counted in ``limits[0]``."""
     q = np.empty(NQ)
     gr = np.empty((NQ, 3))
     J = np.empty((2, 3))
@@ -163,7 +168,7 @@ def _trace_one(z0, direction, code, p0, p1, tgt, max_mode, lam_max, turn_max, ou
         t0 = J[0, 1] * J[1, 2] - J[0, 2] * J[1, 1]
         t1 = J[0, 2] * J[1, 0] - J[0, 0] * J[1, 2]
         t2 = J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]
-        s0, s1, s2 = _metric(z, max_mode)
+        s0, s1, s2 = _metric(z, mext)
         nt_ = math.sqrt((t0 / s0) ** 2 + (t1 / s1) ** 2 + (t2 / s2) ** 2)
         if not nt_ > 0.0:
             break
@@ -186,16 +191,21 @@ def _trace_one(z0, direction, code, p0, p1, tgt, max_mode, lam_max, turn_max, ou
         if not accepted:
             break
         tprev[0], tprev[1], tprev[2] = t0, t1, t2
-        _visit_segment(z, zp, lam_nodes, npsi, nt, max_mode, visited)
+        _visit_segment(z, zp, lam_nodes, npsi, nt, mext, visited)
         z[0], z[1], z[2] = zp[0], zp[1], zp[2]
         steps += 1
         wrench_eval(z[0], z[1], z[2], q, gr)
         g, gx, gy, al, ax, ay, adm = condition_eval(code, p0, p1, q[X], q[Y])
-        if not adm or not _in_scope(z, q, max_mode, lam_max, turn_max):
+        if not adm:
+            break
+        where = _in_scope(z, q, max_mode, lam_max, turn_max)
+        if where != 0:
+            if where == 1:
+                limits[0] += 1
             break
         out[n_out, 0], out[n_out, 1], out[n_out, 2] = z[0], z[1], z[2]
         n_out += 1
-        _visit(z, lam_nodes, npsi, nt, max_mode, visited)
+        _visit(z, lam_nodes, npsi, nt, mext, visited)
         if steps > 8:  # closed loop: back at the start
             d = math.sqrt(((z[0] - z0[0]) / s0) ** 2 + ((z[1] - z0[1]) / s1) ** 2 + ((z[2] - z0[2]) / s2) ** 2)
             if d < 1.5 * h:
@@ -252,8 +262,8 @@ def _seeds(x, y, th, valid, code, p0, p1, tgt, pad) -> np.ndarray:
 
 
 @njit
-def _trace_all(Z, code, p0, p1, tgt, max_mode, lam_max, turn_max, lam_nodes, npsi, nt, visited, cells,
-               out, starts) -> int:
+def _trace_all(Z, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, lam_nodes, npsi, nt, visited, cells,
+               out, starts, limits) -> int:
     """Project every seed ``Z[r]`` (in cell ``cells[r]``) onto the curve and trace from it unless
     an earlier trace passed through its cell; polylines are stored consecutively in ``out``
     with their start offsets in ``starts``; returns the number of polylines."""
@@ -270,15 +280,15 @@ def _trace_all(Z, code, p0, p1, tgt, max_mode, lam_max, turn_max, lam_nodes, nps
         if not _correct(z, code, p0, p1, tgt, q, gr, J, 30, 1e-12):
             continue
         wrench_eval(z[0], z[1], z[2], q, gr)
-        if not _in_scope(z, q, max_mode, lam_max, turn_max):
+        if _in_scope(z, q, max_mode, lam_max, turn_max) != 0:
             continue
-        i, j, k = _cell(z, lam_nodes, npsi, nt, max_mode)
+        i, j, k = _cell(z, lam_nodes, npsi, nt, mext)
         if i >= 0 and visited[i, j, k]:
             continue
         if n_out + 2 * MAX_POINTS // 4 > out.shape[0]:
             break
-        nb = _trace_one(z, -1.0, code, p0, p1, tgt, max_mode, lam_max, turn_max, back, 0, visited, lam_nodes,
-                        npsi, nt)
+        nb = _trace_one(z, -1.0, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, back, 0, visited, lam_nodes,
+                        npsi, nt, limits)
         starts[n_lines] = n_out
         for a in range(nb - 1, -1, -1):
             out[n_out] = back[a]
@@ -286,39 +296,41 @@ def _trace_all(Z, code, p0, p1, tgt, max_mode, lam_max, turn_max, lam_nodes, nps
         out[n_out] = z
         n_out += 1
         lim = min(out.shape[0], n_out + MAX_POINTS // 2)
-        n_out = _trace_one(z, 1.0, code, p0, p1, tgt, max_mode, lam_max, turn_max, out[:lim], n_out, visited,
-                           lam_nodes, npsi, nt)
+        n_out = _trace_one(z, 1.0, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, out[:lim], n_out, visited,
+                           lam_nodes, npsi, nt, limits)
         n_lines += 1
-        _visit(z, lam_nodes, npsi, nt, max_mode, visited)
+        _visit(z, lam_nodes, npsi, nt, mext, visited)
     starts[n_lines] = n_out
     return n_lines
 
 
 @lru_cache(maxsize=2)
-def _elliptic_grids(max_mode: int) -> tuple[NDArray[np.float64], ...]:
+def _elliptic_grids(max_mode: int, max_winding: int) -> tuple[NDArray[np.float64], ...]:
     """Features of the libration and rotation grids of :mod:`flexkin.rod.free_atlas`."""
     from ..rod.free_atlas import FEATURES, fill_libration, fill_rotation, libration_grid, rotation_grid
 
     out = []
-    for grid, fill in ((libration_grid, fill_libration), (rotation_grid, fill_rotation)):
-        a, b, c = grid(max_mode)
+    for grid, fill, arg in ((libration_grid, fill_libration, max_mode), (rotation_grid, fill_rotation, max_winding)):
+        a, b, c = grid(arg)
         F = np.empty((len(a), len(b), len(c), FEATURES))
         fill(a, b, c, F)
         out.append(F)
     return tuple(out)
 
 
-def _elliptic_seeds(max_mode: int, code: int, p0: float, p1: float, tgt: float, atlas) -> tuple[NDArray, NDArray]:
+def _elliptic_seeds(max_mode: int, max_winding: int, code: int, p0: float, p1: float, tgt: float, atlas
+                    ) -> tuple[NDArray, NDArray]:
     """Seeds near the separatrix, which the wrench atlas cannot resolve (its tip depends on the
     wrench with a condition number like ``1/k'^2``): cells of the elliptic grids bracketing both
     conditions, as wrench-chart points and their wrench-atlas cells."""
     Z, C = [], []
-    for F in _elliptic_grids(max_mode):
+    mext = moment_extra(max_winding)
+    for F in _elliptic_grids(max_mode, max_winding):
         valid = (F[..., 9] <= lambda_max(max_mode)) & (F[..., 10] <= max_mode) & np.all(np.isfinite(F), axis=-1)
         cells = _seeds(F[..., 0], F[..., 1], F[..., 4], valid, code, p0, p1, tgt, 0.25)
         for i, j, k in cells:
             z = np.ascontiguousarray(F[i, j, k, 6:9])
-            ci = _cell(z, atlas.lam, len(atlas.psi), len(atlas.t), max_mode)
+            ci = _cell(z, atlas.lam, len(atlas.psi), len(atlas.t), mext)
             if ci[0] >= 0:
                 Z.append(z)
                 C.append(ci)
@@ -326,31 +338,36 @@ def _elliptic_seeds(max_mode: int, code: int, p0: float, p1: float, tgt: float, 
 
 
 def clamped_leg_curve(mech, i: int, B: NDArray[np.float64], theta: float, max_mode: int,
-                      force_tol: float = 0.05) -> LegCurve:
+                      max_winding: int = 1, force_tol: float = 0.05) -> LegCurve:
     """Curves of clamped leg ``i`` (0-based) with its attach point at ``B`` (world) and the
     platform at orientation ``theta``: one branch dict per polyline (see
-    :class:`~flexkin.solve.curves.LegCurve`; ``z`` holds the wrench-chart coordinates)."""
+    :class:`~flexkin.solve.curves.LegCurve`; ``z`` holds the wrench-chart coordinates), rods of
+    d-mode ``<= max_mode`` and winding ``|w| <= max_winding`` (with a margin of turning).
+    ``limits`` counts the polylines stopped at the grid's force limit
+    (:func:`~flexkin.rod.wrench_atlas.lambda_max`)."""
     leg = mech.legs[i]
-    atlas = get_wrench_atlas(max_mode)
+    atlas = get_wrench_atlas(max_mode, max_winding)
+    mext = moment_extra(max_winding)
     code, par = leg.actuator.condition(B)
     tgt = float(theta + leg.tip_angle)
     cells = _seeds(atlas.x, atlas.y, atlas.th, atlas.valid, int(code), float(par[0]), float(par[1]), tgt, 0.25)
     Z = np.ascontiguousarray(atlas.wrench(cells[:, 0] + 0.5, cells[:, 1] + 0.5, cells[:, 2] + 0.5)) \
         if len(cells) else np.zeros((0, 3))
-    Ze, Ce = _elliptic_seeds(max_mode, int(code), float(par[0]), float(par[1]), tgt, atlas)
+    Ze, Ce = _elliptic_seeds(max_mode, max_winding, int(code), float(par[0]), float(par[1]), tgt, atlas)
     Z, cells = np.ascontiguousarray(np.concatenate([Z, Ze])), np.ascontiguousarray(np.concatenate([cells, Ce]))
     visited = np.zeros((len(atlas.lam) - 1, len(atlas.psi), len(atlas.t) - 1), bool)
     out = np.empty((40 * MAX_POINTS, 3))
     starts = np.zeros(len(Z) + 2, np.int64)
-    n_lines = _trace_all(Z, int(code), float(par[0]), float(par[1]), tgt, max_mode, lambda_max(max_mode),
-                         turning_max(max_mode), atlas.lam, len(atlas.psi), len(atlas.t), visited, cells, out, starts)
+    limits = np.zeros(1, np.int64)
+    n_lines = _trace_all(Z, int(code), float(par[0]), float(par[1]), tgt, max_mode, mext, lambda_max(max_mode),
+                         turning_max(max_winding) + TURN_MARGIN, atlas.lam, len(atlas.psi), len(atlas.t), visited,
+                         cells, out, starts, limits)
     branches = []
     for a in range(n_lines):
         zl = out[starts[a]:starts[a + 1]]
         if len(zl) >= 2:
             branches.append(_thin(_branch_data(leg, B, zl), leg.rod.EI, force_tol))
-    _ = moment_scale
-    return LegCurve(i, leg.actuation, tuple(branches))
+    return LegCurve(i, leg.actuation, tuple(branches), limits=int(limits[0]))
 
 
 @njit

@@ -23,8 +23,8 @@ from .pinned_curves import pinned_leg_curve
 __all__ = ["LegCurve", "leg_curves"]
 
 
-def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.0, force_tol: float = 0.05,
-               passes: int = 8, progress: Callable[[float, str], None] | None = None,
+def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, max_winding: int = 1, theta: float = 0.0,
+               force_tol: float = 0.05, passes: int = 8, progress: Callable[[float, str], None] | None = None,
                deadline: Deadline | None = None) -> list[LegCurve]:
     """Geometric-condition curves of the legs for world attach points ``B`` (3, 2) and platform
     orientation ``theta``: pinned legs by :func:`~flexkin.solve.pinned_curves.pinned_leg_curve`,
@@ -36,6 +36,8 @@ def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.
     B : (3, 2) world attach points at the imposed pose.
     max_mode : int
         Largest d-mode represented.
+    max_winding : int
+        Largest ``|winding|`` of a clamped rod represented (SPEC §2).
     theta : float
         Platform orientation (rad; used by clamped legs).
     force_tol : float
@@ -62,7 +64,7 @@ def leg_curves(mech, B: NDArray[np.float64], max_mode: int, *, theta: float = 0.
         if progress is not None and i:
             progress(i / 3, f"leg {i + 1}")
         if leg.platform_joint.carries_moment:
-            out.append(clamped_leg_curve(mech, i, B[i], theta, max_mode))
+            out.append(clamped_leg_curve(mech, i, B[i], theta, max_mode, max_winding))
         else:
             out.append(pinned_leg_curve(mech, i, B[i], max_mode, force_tol=force_tol, passes=passes))
     return out

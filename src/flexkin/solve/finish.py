@@ -36,19 +36,27 @@ from ..rod.kernels import CHART_SEAM, CHART_WRENCH, PHI, TH
 from ..rod.seam_atlas import seam_in_scope
 from ..rod.slots import X as X_, Y as Y_
 from ..rod.wrench import wrench_mode
-from ..rod.wrench_atlas import in_wrench_scope
+from ..rod.wrench_atlas import in_wrench_scope, lambda_max
 from ..rod.state import RodState
 from ..system import System
 from .corrector import RESIDUAL_TOL
 from .sliced import newton_within
 
-__all__ = ["refine", "finish_solutions", "build_solutions", "distinct", "canonical", "rod_modes", "SCOPE_MESSAGE"]
+__all__ = ["refine", "finish_solutions", "build_solutions", "distinct", "canonical", "rod_modes", "SCOPE_MESSAGE", "force_limit_message"]
 
 #: why a result is incomplete when the search reached equilibria with a rod near straight under
 #: tension beyond the numerical scope
 SCOPE_MESSAGE = ("equilibria with a rod near straight under tension beyond the numerical scope (lambda L > 15.9, "
                  "a boundary layer too thin to confirm in double precision) were found and not reported: the "
                  "solution list is incomplete there")
+
+
+def force_limit_message(max_mode: int) -> str:
+    """Why a result is incomplete when a clamped leg's search reached its grid's force limit."""
+    lam = lambda_max(max_mode)
+    return (f"the search for clamped rods reached its numerical force limit (lambda L = {lam:g}, a tip force of "
+            f"{lam * lam:g} EI/L^2) and did not look beyond it: equilibria with a more heavily loaded clamped rod "
+            "may be missing")
 
 
 def canonical(system: System, X: NDArray) -> NDArray[np.float64]:
@@ -74,7 +82,8 @@ def rod_modes(system: System, X: NDArray, charts: NDArray, with_boundary: bool =
     A pinned rod's mode is the number of inflection points on (0, L] (its unified clamp
     amplitude, :func:`~flexkin.rod.closed_form.mode_of`); a base inflection does not count, so
     a rod on the boundary between two modes carries the lower label whichever side the solver
-    came from.  A clamped rod's mode is 1 + the inflections strictly inside.
+    came from.  A clamped rod's mode is the number of inflections strictly inside (its clamped
+    tip is not an inflection).
     """
     n = len(X)
     modes = np.ones((n, 3), np.int64)
@@ -95,13 +104,13 @@ def rod_modes(system: System, X: NDArray, charts: NDArray, with_boundary: bool =
     return (modes, boundary) if with_boundary else modes
 
 
-def _in_scope(system: System, X: NDArray, charts: NDArray, modes: NDArray, max_mode: int
+def _in_scope(system: System, X: NDArray, charts: NDArray, modes: NDArray, max_mode: int, max_winding: int
               ) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
     """Solutions whose rods are all in the searched set, as three masks: the unified-chart pinned
     rods (``k' >= KPRIME_MIN / 2``, :mod:`flexkin.rod.atlas`), the seam-chart pinned rods (near
     straight under tension, ``lambda L <= LAMBDA_SCOPE``, :mod:`flexkin.rod.seam_atlas`: ``k'``
-    goes to 0 there at any tension) and the clamped rods (within the wrench atlas' scope,
-    :func:`~flexkin.rod.wrench_atlas.in_wrench_scope`)."""
+    goes to 0 there at any tension) and the clamped rods (d-mode and winding within SPEC §2's
+    scope, :func:`~flexkin.rod.wrench_atlas.in_wrench_scope`)."""
     ok_u, ok_s, ok_c = (np.ones(len(X), bool) for _ in range(3))
     if len(X) == 0:
         return ok_u, ok_s, ok_c
@@ -116,7 +125,7 @@ def _in_scope(system: System, X: NDArray, charts: NDArray, modes: NDArray, max_m
         if np.any(seam):
             ok_s[seam] &= seam_in_scope(q[seam, i, PHI])
         if np.any(clamped):
-            ok_c[clamped] &= in_wrench_scope(z[clamped], q[clamped, i, TH], modes[clamped, i], max_mode)
+            ok_c[clamped] &= in_wrench_scope(q[clamped, i, TH], modes[clamped, i], max_mode, max_winding)
     return ok_u, ok_s, ok_c
 
 
@@ -221,17 +230,19 @@ BUILD_COST = 3e-3
 def finish_solutions(system: System, mech, X: NDArray, charts: NDArray, residual: NDArray, max_mode: int,
                      load: NDArray, diag: dict[str, Any] | None = None, fixed: str = "pose",
                      deadline: Deadline | None = None,
-                     progress: Callable[[float, str], None] | None = None, margin: bool = False) -> list[Solution]:
+                     progress: Callable[[float, str], None] | None = None, margin: bool = False,
+                     max_winding: int = 1) -> list[Solution]:
     """Reported solutions from refined candidates (module docstring); ``fixed`` is what the
     analysis held (``"pose"`` for IK, ``"inputs"`` for FK): its Newton matrix gives ``condition``;
-    ``margin`` computes the stability margins now (else on first use).
+    ``margin`` computes the stability margins now (else on first use); clamped rods with
+    ``|winding| > max_winding`` are out of scope.
     With a ``deadline`` the solutions are built in slices while the time allows; those left
     unbuilt are dropped and the deadline is :attr:`~flexkin.core.budget.Deadline.hit`.
     ``progress(fraction, stage)`` is told how far the analysis has got."""
     X = canonical(system, X)
     modes = rod_modes(system, X, charts)
     ok = np.all(modes <= max_mode, axis=1) & np.all(np.isfinite(X), axis=1)
-    ok_u, ok_s, ok_c = _in_scope(system, X[ok], charts[ok], modes[ok], max_mode)
+    ok_u, ok_s, ok_c = _in_scope(system, X[ok], charts[ok], modes[ok], max_mode, max_winding)
     if diag is not None and not np.all(ok_u & ok_s):  # equilibria the numerics cannot confirm: counted
         idx = np.flatnonzero(ok)
         for key, bad in (("out_of_scope", ~(ok_u & ok_s) & ok_c), ("out_of_scope_taut", ~ok_s & ok_c)):
@@ -336,7 +347,7 @@ def _with_id(s: Solution, k: int) -> Solution:
 
 def refine(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int, held: str = "pose",
            diag: dict[str, Any] | None = None, deadline: Deadline | None = None,
-           progress: Progress | None = None, margin: bool = False) -> list[Solution]:
+           progress: Progress | None = None, margin: bool = False, max_winding: int = 1) -> list[Solution]:
     """Newton-refine candidates ``X`` and build the solutions: IK and FK share this finish.
 
     Parameters
@@ -363,6 +374,8 @@ def refine(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max
         ``progress(fraction, stage)``.
     margin : bool
         Compute the stability margins now.
+    max_winding : int
+        Largest ``|winding|`` of a clamped rod reported (SPEC §2).
 
     Returns
     -------
@@ -373,4 +386,4 @@ def refine(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max
     if diag is not None:
         diag["converged"] = int(np.count_nonzero(good))
     return finish_solutions(system, mech, res.x[good], res.charts[good], res.residual[good], max_mode, load, diag,
-                            held, deadline=deadline, progress=progress, margin=margin)
+                            held, deadline=deadline, progress=progress, margin=margin, max_winding=max_winding)

@@ -19,18 +19,19 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.budget import Deadline
-from ..core.validation import as_load, as_triple, check_max_mode
+from ..core.validation import as_load, as_triple, check_max_mode, check_max_winding
 from ..io.progress import Progress, substage
 from ..results import FKDiagnostics, KinematicsResult
 from ..system import System
-from .finish import SCOPE_MESSAGE, refine
+from .finish import SCOPE_MESSAGE, force_limit_message, refine
 from .fk_lattice import lattice_starts
 from .fk_search import fk_starts
 
 __all__ = ["fk"]
 
 
-def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *, stride: int = 4,
+def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *, max_winding: int = 1,
+       stride: int = 4,
        stable_only: bool = False, time_budget: float | Deadline | None = None,
        progress: Progress | None = None, margin: bool = False) -> KinematicsResult:
     """All equilibrium poses of ``mech`` for actuator ``inputs`` under ``load`` (paper §5).
@@ -45,7 +46,10 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     load : (Fx, Fy, Mz), optional
         Load wrench on the platform at P; defaults to the mechanism file's ``[load]``.
     max_mode : int
-        Largest d-mode of any rod (default 2).
+        Largest d-mode of any rod (default 2; a clamped rod's d-mode counts its inflections
+        strictly inside).
+    max_winding : int
+        Largest ``|winding|`` of a clamped rod (SPEC §2; default 1).
     stride : int
         Coarsening of the atlas cells used by the search (1 = finest, slowest).
     stable_only : bool
@@ -68,11 +72,13 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     -------
     KinematicsResult
         ``problem == "fk"``; ``solutions`` possibly empty, then ``message`` explains.
-        ``complete`` is ``False`` when the search stopped early, or when it reached equilibria
-        with a rod near straight under tension beyond the numerical scope (not reported).
+        ``complete`` is ``False`` when the search stopped early, when it reached equilibria
+        with a rod near straight under tension beyond the numerical scope (not reported), or
+        when a clamped leg's rods reached the search's force limit where the other legs reach.
     """
     t0 = time.perf_counter()
     max_mode = check_max_mode(max_mode)
+    max_winding = check_max_winding(max_winding)
     u = as_triple(inputs, "inputs")
     w = as_load(mech, load)
     for i, leg in enumerate(mech.legs):
@@ -84,13 +90,15 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     msg = _assembly_obstruction(system, u)
     if msg:
         return KinematicsResult((), True, msg, time.perf_counter() - t0, FKDiagnostics(), "fk", mech, given, wl,
-                                max_mode)
+                                max_mode, max_winding=max_winding)
     if np.any(system.clamped):  # 9-D interval bounds exclude too little: the pose lattice
-        X, complete, stats = lattice_starts(system, u, w, max_mode, deadline=dl.end if dl.limited else None,
+        X, complete, stats = lattice_starts(system, u, w, max_mode, max_winding=max_winding,
+                                            deadline=dl.end if dl.limited else None,
                                             progress=substage(progress, 0.0, 0.6, "pose lattice"))
         charts = system.default_charts(len(X))
         nodes = stats.combinations
         diag["lattice_h"], diag["lattice_n_theta"] = stats.h, stats.n_theta
+        diag["force_limit"] = int(stats.force_limit)
     else:
         X, charts, complete, nodes = fk_starts(system, u, w, max_mode, stride=stride, deadline=dl.for_search(),
                                                progress=substage(progress, 0.0, 0.6, "branch-and-bound"))
@@ -100,7 +108,7 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     if progress is not None:
         progress(0.6, f"Newton on {len(X)} candidates")
     sols = refine(system, mech, X, charts, w, max_mode, "inputs", diag, deadline=dl,
-                     progress=substage(progress, 0.7, 1.0, "equilibria"), margin=margin)
+                  progress=substage(progress, 0.7, 1.0, "equilibria"), margin=margin, max_winding=max_winding)
     if dl.limited and not complete and "lattice_h" in diag:
         dl.hit = True  # the lattice search stops only at the deadline
     complete = complete and not dl.hit
@@ -111,12 +119,15 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
     if diag.get("out_of_scope_taut"):
         complete = False
         msg = SCOPE_MESSAGE
+    if diag.get("force_limit"):
+        complete = False
+        msg = force_limit_message(max_mode)
     if not diag["search_complete"] or dl.hit:
         why = dl.message() if dl.hit else f"search budget exhausted ({nodes} node triples examined)"
         msg = f"{why}: the global search did not finish, the solution list may be incomplete" + \
             ("" if sols else "; " + msg)
     res = KinematicsResult(tuple(sols), complete, msg, time.perf_counter() - t0, FKDiagnostics(**diag), "fk", mech,
-                           given, wl, max_mode)
+                           given, wl, max_mode, max_winding=max_winding)
     return res.select(stable_only=True) if stable_only else res
 
 

@@ -58,7 +58,7 @@ from ..core.linalg import solve_into
 from ..rod.atlas import get_atlas
 from ..rod.slots import CHART_UNIFIED, CHART_WRENCH, FX, FY, ML, NQ, TH, X, Y
 from ..rod.kernels import eval_rod
-from ..rod.wrench_atlas import get_wrench_atlas, lambda_max, turning_max
+from ..rod.wrench_atlas import get_wrench_atlas, lambda_max, moment_scale, turning_max
 from ..system import System
 
 __all__ = ["lattice_starts", "pose_lattice", "LatticeStats", "S_MAX"]
@@ -86,7 +86,9 @@ _BIAS = 1 << (_BITS - 1)
 class LatticeStats:
     """Counts of one lattice search: lattice spacing ``h`` (m) and ``n_theta``; rods (``hits``)
     per leg over the lattice; lattice poses reached by all legs (``poses``); ``combinations``
-    examined; candidates (``starts``) and those kept for the pose Newton (``clustered``)."""
+    examined; candidates (``starts``) and those kept for the pose Newton (``clustered``); whether
+    a clamped rod beyond the grid's force limit sits at a pose every leg reaches
+    (``force_limit``: the search may miss equilibria there)."""
 
     h: float
     n_theta: int
@@ -95,6 +97,7 @@ class LatticeStats:
     combinations: int
     starts: int
     clustered: int
+    force_limit: bool = False
 
 
 # ---- lattice -------------------------------------------------------------------------------
@@ -504,22 +507,22 @@ def _lattice_index(P: NDArray, lat: NDArray, nth: int, box: NDArray, kin: NDArra
 
 
 def _seeds(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat: NDArray, nth: int, box: NDArray,
-           kin: NDArray, max_mode: int) -> tuple[NDArray, NDArray, NDArray, int, int, float]:
+           kin: NDArray, max_mode: int, max_winding: int) -> tuple[NDArray, NDArray, NDArray, int, int, float]:
     """Leg ``i``'s seeds: every node of its rod atlas (an exact rod, hence an exact pose or, pinned,
     one per lattice orientation) with the nearest lattice pose (key, chart coordinates, pose
     step), and the chart code, chart dimension and force cap of the leg's rods."""
     b = np.asarray(system.attach, dtype=float)
     if system.clamped[i]:
-        W = get_wrench_atlas(max_mode)
+        W = get_wrench_atlas(max_mode, max_winding)
         # the scope with a margin (rods at its edge are continued into it)
-        valid = np.isfinite(W.x) & (W.mode <= max_mode + 1) & (np.abs(W.th) <= turning_max(max_mode) + 1.0)
+        valid = np.isfinite(W.x) & (W.mode <= max_mode + 1) & (np.abs(W.th) <= turning_max(max_winding) + 1.0)
         tip = A[i] + L[i] * rotate(np.stack([W.x, W.y], -1), al[i])
         th = al[i] + W.th - system.tip_angle[i]
         P = np.concatenate([tip - rotate(b[i], th), th[..., None]], -1)[valid]
         lam = np.broadcast_to(W.lam[:, None, None], W.x.shape)[valid]
         psi = np.broadcast_to((np.arange(W.x.shape[1]) * (TWO_PI / W.x.shape[1]))[None, :, None], W.x.shape)[valid]
         t = np.broadcast_to(W.t[None, None, :], W.x.shape)[valid]
-        Z = np.column_stack([lam * lam * np.cos(psi), lam * lam * np.sin(psi), (2.0 * lam + TWO_PI * max_mode) * t])
+        Z = np.column_stack([lam * lam * np.cos(psi), lam * lam * np.sin(psi), moment_scale(lam, max_winding) * t])
         key, dp, ok = _lattice_index(P, lat, nth, box, kin, A, L, b)
         return key[ok], Z[ok], dp[ok], CHART_WRENCH, 3, (1.2 * lambda_max(max_mode)) ** 2
     At = get_atlas(max_mode)
@@ -541,11 +544,11 @@ def _seeds(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat: NDA
 
 
 def _leg_params(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, R_cap: float,
-                max_mode: int) -> NDArray[np.float64]:
+                max_winding: int) -> NDArray[np.float64]:
     """Leg ``i``'s parameters as :func:`_rod_at` reads them."""
     b = system.attach[i]
     return np.array([A[i, 0], A[i, 1], al[i], L[i], system.EI[i], system.tip_angle[i], b[0], b[1], system.F_ref,
-                     system.L_ref, R_cap, turning_max(max_mode) + 1.0], dtype=float)
+                     system.L_ref, R_cap, turning_max(max_winding) + 1.0], dtype=float)
 
 
 def _rod_hash(keys: NDArray, z: NDArray) -> NDArray[np.int64]:
@@ -558,7 +561,8 @@ def _rod_hash(keys: NDArray, z: NDArray) -> NDArray[np.int64]:
 
 
 def _leg_sheet(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat: NDArray, nth: int, box: NDArray,
-               kin: NDArray, max_mode: int, deadline: float | None) -> tuple[dict[str, NDArray], bool, tuple]:
+               kin: NDArray, max_mode: int, max_winding: int, deadline: float | None
+               ) -> tuple[dict[str, NDArray], bool, tuple]:
     """Every rod of leg ``i`` at every lattice pose it reaches (sorted by lattice pose), with
     its linearised balance contribution and its sheet (``"sheet"``: the connected component of
     the rods linked by continuation between neighbouring lattice poses).
@@ -567,10 +571,10 @@ def _leg_sheet(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat:
     the lattice: every new rod found at a pose is continued to the six neighbouring poses until
     no new rod appears.  Also returns whether it finished before ``deadline`` and the leg's
     ``(parameters, chart, chart dimension)`` for :func:`_rod_at`."""
-    keys, zs, dps, chart, dim, R_cap = _seeds(system, i, A, al, L, lat, nth, box, kin, max_mode)
+    keys, zs, dps, chart, dim, R_cap = _seeds(system, i, A, al, L, lat, nth, box, kin, max_mode, max_winding)
     src = np.full(len(keys), -1, np.int64)  # the rod each candidate was continued from
     b = np.ascontiguousarray(system.attach, dtype=float)
-    leg = _leg_params(system, i, A, al, L, R_cap, max_mode)
+    leg = _leg_params(system, i, A, al, L, R_cap, max_winding)
     parts: list[dict[str, NDArray]] = []
     known = np.zeros(0, np.int64)        # hashes of the rods found so far, sorted ...
     known_at = np.zeros(0, np.int64)     # ... and their indices
@@ -618,7 +622,8 @@ def _leg_sheet(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat:
     return {k: v[order] for k, v in out.items()}, complete, (leg, chart, dim)
 
 
-def lattice_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int, *, h: float = H,
+def lattice_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int, *, max_winding: int = 1,
+                   h: float = H,
                    n_theta: int = N_THETA, s_max: float = S_MAX, deadline: float | None = None,
                    progress: Callable[[float, str], None] | None = None
                    ) -> tuple[NDArray[np.float64], bool, LatticeStats]:
@@ -635,6 +640,8 @@ def lattice_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int
         Load wrench ``(F_x, F_y, M_z)`` on the platform at P.
     max_mode : int
         Largest d-mode searched.
+    max_winding : int
+        Largest ``|winding|`` of a clamped rod searched.
     h : float
         Lattice spacing in ``x, y``, in units of the mechanism's length scale.
     n_theta : int
@@ -659,7 +666,7 @@ def lattice_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int
     for i in range(3):
         if progress is not None:
             progress(0.25 * i, f"rods of leg {i + 1} on the pose lattice")
-        leg, done, model = _leg_sheet(system, i, A, al, L, lat, nth, box, kin, max_mode, deadline)
+        leg, done, model = _leg_sheet(system, i, A, al, L, lat, nth, box, kin, max_mode, max_winding, deadline)
         legs.append(leg)
         rod_models.append(model)
         if not done:
@@ -672,6 +679,11 @@ def lattice_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int
     if progress is not None:
         progress(0.75, "rod triples in platform equilibrium")
     common = np.intersect1d(np.intersect1d(legs[0]["keys"], legs[1]["keys"]), legs[2]["keys"])
+    # a clamped rod beyond the grid's force limit at a pose every leg reaches: the sheets go on
+    # where the search does not look
+    lam2 = lambda_max(max_mode) ** 2
+    force_limit = any(system.clamped[i] and np.any(np.isin(leg["keys"][np.hypot(leg["z1"][:, 0], leg["z1"][:, 1]) > lam2],
+                                                           common)) for i, leg in enumerate(legs))
     ranges = [np.stack([np.searchsorted(leg["keys"], common, "left"), np.searchsorted(leg["keys"], common, "right")],
                        1).astype(np.int64) for leg in legs]
     target = np.asarray(load, dtype=float) / system.wrench_scale()
@@ -711,7 +723,8 @@ def lattice_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int
     # one start per solution (equal poses and rods)
     _, first = np.unique(np.round(X / (1e-7 * (1.0 + np.abs(X)))), axis=0, return_index=True)
     X = X[np.sort(first)]
-    stats = LatticeStats(hx, nth, n_rods, int(len(common)), int(examined), int(n), int(len(keep)))  # type: ignore[arg-type]
+    stats = LatticeStats(hx, nth, n_rods, int(len(common)), int(examined), int(n), int(len(keep)),  # type: ignore[arg-type]
+                         force_limit)
     return X, True, stats
 
 

@@ -20,13 +20,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..core.budget import Deadline
-from ..core.validation import as_load, as_triple, check_max_mode
+from ..core.validation import as_load, as_triple, check_max_mode, check_max_winding
 from ..io.progress import Progress, substage
 from ..results import IKDiagnostics, KinematicsResult
 from ..system import System
 from .curves import leg_curves
 from .equilibrium import equilibrium_triples
-from .finish import SCOPE_MESSAGE, refine
+from .finish import SCOPE_MESSAGE, force_limit_message, refine
 
 __all__ = ["ik"]
 
@@ -36,7 +36,7 @@ __all__ = ["ik"]
 CANDIDATE_COST = 3e-4
 
 
-def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *,
+def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, *, max_winding: int = 1,
        stable_only: bool = False, time_budget: float | Deadline | None = None,
        progress: Progress | None = None, margin: bool = False) -> KinematicsResult:
     """All equilibria of ``mech`` at platform ``pose`` under ``load`` (paper §4).
@@ -50,7 +50,10 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     load : (Fx, Fy, Mz), optional
         Load wrench on the platform at P; defaults to the mechanism file's ``[load]``.
     max_mode : int
-        Largest d-mode of any rod (default 2, i.e. the 8 combinations of modes 1-2).
+        Largest d-mode of any rod (default 2, i.e. the 8 combinations of modes 1-2 of pinned
+        rods; a clamped rod's d-mode counts its inflections strictly inside, from 0).
+    max_winding : int
+        Largest ``|winding|`` of a clamped rod (SPEC §2; default 1).
     stable_only : bool
         Keep only the stable equilibria (default: all, stable and unstable).
     time_budget : float or Deadline, optional
@@ -71,25 +74,28 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     KinematicsResult
         ``problem == "ik"``; ``solutions`` (possibly empty, then ``message`` explains),
         ``curves`` holds the geometric-condition curves of step 1.  ``complete`` is ``False``
-        when the search stopped early, or when it reached equilibria with a rod near straight
-        under tension beyond the numerical scope (not reported; ``message`` says so).
+        when the search stopped early, when it reached equilibria with a rod near straight
+        under tension beyond the numerical scope (not reported), or when a clamped leg's curves
+        reached the search's force limit (``message`` says so).
     """
     t0 = time.perf_counter()
     max_mode = check_max_mode(max_mode)
+    max_winding = check_max_winding(max_winding)
     pose = as_triple(pose, "pose (x, y, theta)")
     w = as_load(mech, load)
     dl = Deadline.of(time_budget)
     system = System.from_mechanism(mech)
     B = system.platform_points(pose[None])[0]
-    curves = leg_curves(mech, B, max_mode, theta=float(pose[2]),
+    curves = leg_curves(mech, B, max_mode, max_winding=max_winding, theta=float(pose[2]),
                         progress=substage(progress, 0.0, 0.3, "geometric-condition curves"), deadline=dl)
-    diag: dict[str, Any] = {"branches": tuple(len(c) for c in curves)}
+    diag: dict[str, Any] = {"branches": tuple(len(c) for c in curves),
+                            "force_limit": sum(c.limits for c in curves)}
     given = tuple(float(v) for v in pose)
     if dl.expired():
         diag["search_complete"] = False
         return KinematicsResult((), False, dl.message("stopped before the search for equilibria"),
                                 time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech, given,
-                                tuple(float(v) for v in w), max_mode, curves)
+                                tuple(float(v) for v in w), max_mode, curves, max_winding=max_winding)
 
     # ---- step 2: equilibrium triples on the polylines (wrench space) -----------------------
     wscale = system.wrench_scale()
@@ -120,8 +126,11 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         msg = _empty_message(curves) if complete else \
             (dl.message("the search stopped before any candidate was found") if dl.hit else
              "search stopped early (node budget) before any candidate was found")
+        if complete and diag["force_limit"]:
+            complete, msg = False, force_limit_message(max_mode)
         return KinematicsResult((), complete, msg, time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech,
-                                tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves)
+                                tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves,
+                                max_winding=max_winding)
     X = np.zeros((len(seg), lay.n_unknowns))
     X[:, lay.pose] = pose
     charts = np.stack([cs[i][seg[:, i]] for i in range(3)], axis=1)  # a rod in the chart of its branch
@@ -135,7 +144,7 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     if progress is not None:
         progress(0.4, f"Newton on {len(X)} candidates")
     sols = refine(system, mech, X, charts, w, max_mode, "pose", diag, deadline=dl,
-                     progress=substage(progress, 0.45, 1.0, "equilibria"), margin=margin)
+                  progress=substage(progress, 0.45, 1.0, "equilibria"), margin=margin, max_winding=max_winding)
     complete = complete and not dl.hit
     msg = "" if sols else "no equilibrium found: the geometric-condition curves admit no point of platform equilibrium"
     if diag.get("continuum"):
@@ -144,11 +153,15 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
     if diag.get("out_of_scope_taut"):
         complete = False
         msg = SCOPE_MESSAGE
+    if diag["force_limit"]:
+        complete = False
+        msg = force_limit_message(max_mode)
     if not diag["search_complete"] or dl.hit:
         msg = (dl.message("the solution list may be incomplete") if dl.hit else
                "search stopped early (node budget): the solution list may be incomplete")
     res = KinematicsResult(tuple(sols), complete, msg, time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech,
-                           tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves)
+                           tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves,
+                           max_winding=max_winding)
     return res.select(stable_only=True) if stable_only else res
 
 

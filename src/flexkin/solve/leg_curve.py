@@ -24,6 +24,8 @@ class LegCurve:
     leg: int
     actuation: str
     branches: tuple[dict[str, NDArray], ...]
+    #: polylines stopped at a numerical limit of the search (a clamped leg's grid force limit)
+    limits: int = 0
 
     def __len__(self) -> int:
         return len(self.branches)
