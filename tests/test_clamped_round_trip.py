@@ -9,6 +9,9 @@ The cases are those where it did not:
   pose fell inside the reach region, which lies between the nodes' poses), so FK returned no
   solution and said it was complete; and its length leg's pinned rods, continued without a
   d-mode bound, flooded the lattice with rods of d-mode up to 60 (4 M rods, 6 min);
+* ``examples/unit_3pff.toml`` at (0, 0, 20 deg), a clamped rod at 0.99 L under ~120 EI/L^2
+  (slow): the pose Newton stalled a few mm from the solution and the FK Newton started only
+  from the linear prediction, which did not converge;
 * a Nitinol design of our own (EI = 0.27 N m^2, L = 0.9 m) with two clamped legs, at the IK
   solution whose rods are all nearly straight (chord > 0.99 L, forces of a few EI/L^2).
 
@@ -118,3 +121,17 @@ def test_nearly_straight_clamped_rods_nitinol_more(pose):
     assert picks
     for s in picks:
         assert_round_trip(m, s)
+
+
+@pytest.mark.slow
+def test_taut_clamped_rod_unit_3pff():
+    """The unit 3-PF at (0, 0, 20 deg), the solution with a clamped rod at 0.99 L under
+    ~120 EI/L^2 and another nearly straight one under ~13 EI/L^2 (and its C3 copies): the
+    taut rod's chart is so stretched that the pose Newton with slaved rods stalls a few mm from
+    the solution, and the linear prediction does not converge; the FK Newton from where the
+    pose Newton stopped does (~50 s: IK and FK)."""
+    m = flexkin.load_mechanism(EXAMPLES / "unit_3pff.toml")
+    ik = flexkin.ik(m, (0.0, 0.0, math.radians(20.0)))
+    picks = [s for s in ik.solutions if max(chord(r) for r in s.rods) > 0.99 and min(force(r) for r in s.rods) < 15.0]
+    assert picks
+    assert_round_trip(m, picks[0])

@@ -15,8 +15,10 @@ search finds every leg's rods at every pose of one regular pose lattice (spacing
 orientation, :func:`pose_lattice`) and linearises the balance there:
 
 1. **seeds**: every node of the leg's rod atlas is an exact rod, hence an exact pose (pinned:
-   one per lattice orientation); it is continued to its nearest lattice pose (tangent
-   predictor, Newton with the pose frozen: :func:`_rod_at`).
+   one per lattice orientation); it is continued (tangent predictor, Newton with the pose
+   frozen: :func:`_rod_at`) to its nearest lattice pose, or for a clamped leg to the nearest
+   lattice pose of the reach region within the pose extent of the node's grid cells
+   (:func:`_cell_seeds`: a reach region smaller than the cells' images lies between nodes).
 2. **flood fill**: every rod found at a lattice pose is continued to the six neighbouring
    poses, until no new rod appears.  A leg's rods so cover each sheet wherever the lattice
    resolves it, and rods linked by continuation form its *sheets* (connected components).
@@ -30,8 +32,9 @@ orientation, :func:`pose_lattice`) and linearises the balance there:
    at most one lattice step and halved while a rod cannot follow): taut rods, whose force
    grows steeply near the reach boundary, converge where a Newton step on the whole system
    from the linear prediction does not.  Distinct results, and the linear predictions of the
-   candidates whose pose Newton failed (a rod reaching a fold of its sheet), are refined by
-   the FK Newton (:func:`flexkin.solve.ik.refine`).
+   candidates whose pose Newton failed (a rod reaching a fold of its sheet, or too taut to
+   follow) together with where it stopped, are refined by the FK Newton
+   (:func:`flexkin.solve.finish.refine`).
 
 Resolution, not exclusion: a solution is found when its rods' sheets are resolved at the
 lattice spacing around it, which the tests measure against the independent multi-start oracle
@@ -781,11 +784,14 @@ def lattice_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int
     ok = np.zeros(len(keep), np.bool_)
     _pose_newton(P, Z, np.stack([m[0] for m in rod_models]), np.array([m[1] for m in rod_models], np.int64),
                  np.array([m[2] for m in rod_models], np.int64), target, scale, POSE_TOL, POSE_ITER, ok)
-    # where the pose Newton fails (a rod reaches a fold of its sheet), the linear prediction is
-    # the start of the whole system's Newton instead
+    # where the pose Newton fails (a rod reaches a fold of its sheet, or a rod near taut whose
+    # chart is so stretched that it cannot follow even small pose steps: the unit 3-PF's rods
+    # at 0.99 L under 120 EI/L^2), the whole system's Newton starts both from the linear
+    # prediction and from where the pose Newton stopped (exact rods, often mm from the solution
+    # when the linear prediction is not within reach)
     bad = keep[~ok]
-    P = np.concatenate([P[ok], pose[bad] + dp[bad]])
-    Z = np.concatenate([Z[ok], np.stack([legs[i]["z1"][idx[bad, 1 + i]] + np.einsum(
+    P = np.concatenate([P, pose[bad] + dp[bad]])
+    Z = np.concatenate([Z, np.stack([legs[i]["z1"][idx[bad, 1 + i]] + np.einsum(
         "nij,nj->ni", legs[i]["G"][idx[bad, 1 + i]], dp[bad]) for i in range(3)], 1)])
     X = np.zeros((len(P), n_unknowns))
     for i in range(3):
