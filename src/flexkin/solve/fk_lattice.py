@@ -15,8 +15,10 @@ search finds every leg's rods at every pose of one regular pose lattice (spacing
 orientation, :func:`pose_lattice`) and linearises the balance there:
 
 1. **seeds**: every node of the leg's rod atlas is an exact rod, hence an exact pose (pinned:
-   one per lattice orientation); it is continued to its nearest lattice pose (tangent
-   predictor, Newton with the pose frozen: :func:`_rod_at`).
+   one per lattice orientation); it is continued (tangent predictor, Newton with the pose
+   frozen: :func:`_rod_at`) to its nearest lattice pose, or for a clamped leg to the nearest
+   lattice pose of the reach region within the pose extent of the node's grid cells
+   (:func:`_cell_seeds`: a reach region smaller than the cells' images lies between nodes).
 2. **flood fill**: every rod found at a lattice pose is continued to the six neighbouring
    poses, until no new rod appears.  A leg's rods so cover each sheet wherever the lattice
    resolves it, and rods linked by continuation form its *sheets* (connected components).
@@ -30,8 +32,9 @@ orientation, :func:`pose_lattice`) and linearises the balance there:
    at most one lattice step and halved while a rod cannot follow): taut rods, whose force
    grows steeply near the reach boundary, converge where a Newton step on the whole system
    from the linear prediction does not.  Distinct results, and the linear predictions of the
-   candidates whose pose Newton failed (a rod reaching a fold of its sheet), are refined by
-   the FK Newton (:func:`flexkin.solve.ik.refine`).
+   candidates whose pose Newton failed (a rod reaching a fold of its sheet, or too taut to
+   follow) together with where it stopped, are refined by the FK Newton
+   (:func:`flexkin.solve.finish.refine`).
 
 Resolution, not exclusion: a solution is found when its rods' sheets are resolved at the
 lattice spacing around it, which the tests measure against the independent multi-start oracle
@@ -55,7 +58,7 @@ from numpy.typing import NDArray
 from ..core.geometry2d import platform_points, rotate
 from ..core.jit import njit
 from ..core.linalg import solve_into
-from ..rod.atlas import get_atlas
+from ..rod.atlas import KPRIME_MIN, get_atlas
 from ..rod.slots import CHART_UNIFIED, CHART_WRENCH, FX, FY, ML, NQ, TH, X, Y
 from ..rod.kernels import eval_rod
 from ..rod.wrench_atlas import get_wrench_atlas, lambda_max, moment_scale, turning_max
@@ -150,9 +153,13 @@ def _rod_at(z: np.ndarray, x: float, y: float, th: float, dp: np.ndarray, leg: n
     damped Newton with the pose frozen.  Outputs its ``G`` and the scaled platform-balance
     contribution (Eq. 15) ``e = (n_x, n_y, (B_i - P) x n + m_tip)`` linearised in the pose:
     ``e0`` and ``D = de/dpose`` (pose in physical units).  True when Newton converged to a
-    finite rod with force ``R L^2/EI <= R_cap`` and (clamped) tip turning ``<= turn_cap``.
+    finite rod with force ``R L^2/EI <= R_cap`` and, clamped, tip turning ``<= turn_cap``;
+    pinned, ``|v| <= v_cap`` and ``phis >= phis_min`` (the pinned atlas' scope with a margin:
+    without it a rod continued past the last d-mode walks on to ever higher d-modes, and the
+    flood fill with it, hundreds of rods per pose).
 
-    ``leg = (A_x, A_y, alpha, L, EI, tip_angle, b_x, b_y, F_ref, L_ref, R_cap, turn_cap)``."""
+    ``leg = (A_x, A_y, alpha, L, EI, tip_angle, b_x, b_y, F_ref, L_ref, R_cap, turn_cap, v_cap,
+    phis_min)``."""
     q = np.empty(NQ)
     g = np.empty((NQ, 3))
     Mm = np.empty((dim, dim))
@@ -206,7 +213,11 @@ def _rod_at(z: np.ndarray, x: float, y: float, th: float, dp: np.ndarray, leg: n
         damp = min(1.0, 0.5 * size / step) if step > 0 else 1.0
         for c in range(dim):
             z[c] += damp * sol[c]
-    good &= math.hypot(q[FX], q[FY]) <= leg[10] and (dim == 2 or abs(q[TH]) <= leg[11])
+    good &= math.hypot(q[FX], q[FY]) <= leg[10]
+    if dim == 3:
+        good &= abs(q[TH]) <= leg[11]
+    else:
+        good &= abs(z[0]) <= leg[12] and z[1] >= leg[13]
     for r in range(dim):
         for c in range(dim):
             Mm[r, c] = g[rows[r], c]
@@ -506,6 +517,67 @@ def _lattice_index(P: NDArray, lat: NDArray, nth: int, box: NDArray, kin: NDArra
     return key, dp, ok
 
 
+def _reach_poses(lat: NDArray, nth: int, box: NDArray, kin: NDArray, A: NDArray, L: NDArray,
+                 b: NDArray) -> NDArray[np.int64]:
+    """Integer coordinates ``(i, j, k)`` (m, 3) of the lattice poses in the box and the reach
+    region (``k`` unwrapped, in ``box[4] .. box[5]``)."""
+    I, J, K = np.meshgrid(np.arange(box[0], box[1] + 1), np.arange(box[2], box[3] + 1),
+                          np.arange(box[4], box[5] + 1), indexing="ij")
+    ijk = np.column_stack([I.ravel(), J.ravel(), K.ravel()])
+    ijk = ijk[kin[np.mod(ijk[:, 2], nth)]]
+    pose = np.column_stack([lat[0] + ijk[:, 0] * lat[1], lat[2] + ijk[:, 1] * lat[1], lat[3] + ijk[:, 2] * lat[4]])
+    d = platform_points(b, pose) - A[None]
+    return ijk[np.all(np.sum(d * d, axis=-1) <= L * L * (1.0 + 1e-9), axis=1)]
+
+
+def _cell_seeds(P: NDArray, valid: NDArray, lat: NDArray, nth: int, box: NDArray, kin: NDArray, A: NDArray,
+                L: NDArray, b: NDArray) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_]]:
+    """Seeds of a clamped leg from the poses ``P`` (n_lam, n_psi, n_t, 3) of its wrench-atlas
+    nodes (``valid``): every node paired with the nearest lattice pose of the reach region
+    within the pose extent of its grid cells (the tangent predictor of :func:`_rod_at` then
+    crosses the cell).  A sheet that meets the reach region only between nodes -- a reach
+    region smaller than the cells' images, as for a rod that must wind to reach it -- so has
+    seeds; the node's own nearest lattice pose would lie outside the region.  Returns the key,
+    the pose step and whether the node seeds (all flattened)."""
+    from scipy.spatial import cKDTree  # imported here: only a clamped FK needs it
+
+    shape = P.shape[:3]
+    f = np.stack([(P[..., 0] - lat[0]) / lat[1], (P[..., 1] - lat[2]) / lat[1], (P[..., 2] - lat[3]) / lat[4]], -1)
+    # the extent (lattice steps, each coordinate) of the cells around every node: the sum over
+    # the grid axes of the larger step to a neighbour (psi periodic; theta steps wrapped)
+    ext = np.zeros(f.shape)
+    for ax in range(3):
+        fwd = np.roll(f, -1, axis=ax) - f
+        fwd[..., 2] -= nth * np.rint(fwd[..., 2] / nth)
+        fwd = np.where(np.isfinite(fwd), np.abs(fwd), 0.0)  # a non-finite neighbour: no cell there
+        if ax != 1:  # lambda and t are not periodic: no step past the grid's ends
+            idx = [slice(None)] * 4
+            idx[ax] = -1
+            fwd[tuple(idx)] = 0.0
+        ext += np.maximum(fwd, np.roll(fwd, 1, axis=ax))  # (the zeroed last step rolls to the first node)
+    f, ext, ok = f.reshape(-1, 3), ext.reshape(-1, 3), valid.reshape(-1) & np.all(np.isfinite(f.reshape(-1, 3)), 1)
+    reach = _reach_poses(lat, nth, box, kin, A, L, b)
+    n = len(f)
+    key, dp = np.zeros(n, np.int64), np.zeros((n, 3))
+    if not len(reach) or not np.any(ok):
+        return key, dp, np.zeros(n, bool)
+    # orientations are periodic: the node's into [box[4], box[4] + nth), the lattice's repeated
+    fk = f[:, 2].copy()
+    fk[ok] = box[4] + np.mod(fk[ok] - box[4], nth)
+    rep = np.concatenate([reach + [0, 0, s * nth] for s in (-1, 0, 1)])
+    dist, near = cKDTree(rep).query(np.column_stack([f[ok, :2], fk[ok]]), p=np.inf)
+    cell = np.max(ext[ok], axis=1) + 0.5
+    hit = np.flatnonzero(ok)[dist <= cell]
+    g = rep[near[dist <= cell]]
+    key[hit] = ((g[:, 0] + _BIAS) << (2 * _BITS)) | ((g[:, 1] + _BIAS) << _BITS) | np.mod(g[:, 2], nth)
+    dp[hit, 0] = (g[:, 0] - f[hit, 0]) * lat[1]
+    dp[hit, 1] = (g[:, 1] - f[hit, 1]) * lat[1]
+    dp[hit, 2] = (g[:, 2] - fk[hit]) * lat[4]
+    seed = np.zeros(n, bool)
+    seed[hit] = True
+    return key, dp, seed
+
+
 def _seeds(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat: NDArray, nth: int, box: NDArray,
            kin: NDArray, max_mode: int, max_winding: int) -> tuple[NDArray, NDArray, NDArray, int, int, float]:
     """Leg ``i``'s seeds: every node of its rod atlas (an exact rod, hence an exact pose or, pinned,
@@ -518,13 +590,13 @@ def _seeds(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat: NDA
         valid = np.isfinite(W.x) & (W.mode <= max_mode + 1) & (np.abs(W.th) <= turning_max(max_winding) + 1.0)
         tip = A[i] + L[i] * rotate(np.stack([W.x, W.y], -1), al[i])
         th = al[i] + W.th - system.tip_angle[i]
-        P = np.concatenate([tip - rotate(b[i], th), th[..., None]], -1)[valid]
-        lam = np.broadcast_to(W.lam[:, None, None], W.x.shape)[valid]
-        psi = np.broadcast_to((np.arange(W.x.shape[1]) * (TWO_PI / W.x.shape[1]))[None, :, None], W.x.shape)[valid]
-        t = np.broadcast_to(W.t[None, None, :], W.x.shape)[valid]
-        Z = np.column_stack([lam * lam * np.cos(psi), lam * lam * np.sin(psi), moment_scale(lam, max_winding) * t])
-        key, dp, ok = _lattice_index(P, lat, nth, box, kin, A, L, b)
-        return key[ok], Z[ok], dp[ok], CHART_WRENCH, 3, (1.2 * lambda_max(max_mode)) ** 2
+        P = np.concatenate([tip - rotate(b[i], th), th[..., None]], -1)  # (n_lam, n_psi, n_t, 3)
+        lam = np.broadcast_to(W.lam[:, None, None], W.x.shape)
+        psi = np.broadcast_to((np.arange(W.x.shape[1]) * (TWO_PI / W.x.shape[1]))[None, :, None], W.x.shape)
+        t = np.broadcast_to(W.t[None, None, :], W.x.shape)
+        Z = np.stack([lam * lam * np.cos(psi), lam * lam * np.sin(psi), moment_scale(lam, max_winding) * t], -1)
+        key, dp, ok = _cell_seeds(P, valid, lat, nth, box, kin, A, L, b)
+        return key[ok], Z.reshape(-1, 3)[ok], dp[ok], CHART_WRENCH, 3, (1.2 * lambda_max(max_mode)) ** 2
     At = get_atlas(max_mode)
     tip = A[i] + L[i] * rotate(np.stack([At.x, At.y], -1), al[i])
     tx, ty = tip[..., 0].ravel(), tip[..., 1].ravel()
@@ -543,12 +615,16 @@ def _seeds(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat: NDA
     return np.concatenate(keys), np.concatenate(zs), np.concatenate(dps), CHART_UNIFIED, 2, math.inf
 
 
-def _leg_params(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, R_cap: float,
+def _leg_params(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, R_cap: float, max_mode: int,
                 max_winding: int) -> NDArray[np.float64]:
-    """Leg ``i``'s parameters as :func:`_rod_at` reads them."""
+    """Leg ``i``'s parameters as :func:`_rod_at` reads them: the scopes with a margin (a pinned rod:
+    |v| within the atlas' scope plus 1, one d-mode beyond ``max_mode``; a clamped one: turning
+    within the winding's plus 1 rad)."""
     b = system.attach[i]
+    v_cap = float(np.arccosh(2.0 / KPRIME_MIN)) + 1.0
+    phis_min = get_atlas(max_mode).phis_min - math.pi
     return np.array([A[i, 0], A[i, 1], al[i], L[i], system.EI[i], system.tip_angle[i], b[0], b[1], system.F_ref,
-                     system.L_ref, R_cap, turning_max(max_winding) + 1.0], dtype=float)
+                     system.L_ref, R_cap, turning_max(max_winding) + 1.0, v_cap, phis_min], dtype=float)
 
 
 def _rod_hash(keys: NDArray, z: NDArray) -> NDArray[np.int64]:
@@ -574,7 +650,7 @@ def _leg_sheet(system: System, i: int, A: NDArray, al: NDArray, L: NDArray, lat:
     keys, zs, dps, chart, dim, R_cap = _seeds(system, i, A, al, L, lat, nth, box, kin, max_mode, max_winding)
     src = np.full(len(keys), -1, np.int64)  # the rod each candidate was continued from
     b = np.ascontiguousarray(system.attach, dtype=float)
-    leg = _leg_params(system, i, A, al, L, R_cap, max_winding)
+    leg = _leg_params(system, i, A, al, L, R_cap, max_mode, max_winding)
     parts: list[dict[str, NDArray]] = []
     known = np.zeros(0, np.int64)        # hashes of the rods found so far, sorted ...
     known_at = np.zeros(0, np.int64)     # ... and their indices
@@ -708,11 +784,14 @@ def lattice_starts(system: System, inputs: NDArray, load: NDArray, max_mode: int
     ok = np.zeros(len(keep), np.bool_)
     _pose_newton(P, Z, np.stack([m[0] for m in rod_models]), np.array([m[1] for m in rod_models], np.int64),
                  np.array([m[2] for m in rod_models], np.int64), target, scale, POSE_TOL, POSE_ITER, ok)
-    # where the pose Newton fails (a rod reaches a fold of its sheet), the linear prediction is
-    # the start of the whole system's Newton instead
+    # where the pose Newton fails (a rod reaches a fold of its sheet, or a rod near taut whose
+    # chart is so stretched that it cannot follow even small pose steps: the unit 3-PF's rods
+    # at 0.99 L under 120 EI/L^2), the whole system's Newton starts both from the linear
+    # prediction and from where the pose Newton stopped (exact rods, often mm from the solution
+    # when the linear prediction is not within reach)
     bad = keep[~ok]
-    P = np.concatenate([P[ok], pose[bad] + dp[bad]])
-    Z = np.concatenate([Z[ok], np.stack([legs[i]["z1"][idx[bad, 1 + i]] + np.einsum(
+    P = np.concatenate([P, pose[bad] + dp[bad]])
+    Z = np.concatenate([Z, np.stack([legs[i]["z1"][idx[bad, 1 + i]] + np.einsum(
         "nij,nj->ni", legs[i]["G"][idx[bad, 1 + i]], dp[bad]) for i in range(3)], 1)])
     X = np.zeros((len(P), n_unknowns))
     for i in range(3):
