@@ -100,6 +100,7 @@ def test_winding_rod_with_a_nearly_straight_one_mixed_example():
         assert_round_trip(m, s)
 
 
+@pytest.mark.slow  # it passes without the fixes too (a guard of the property): the default run keeps the one that failed
 def test_nearly_straight_clamped_rods_nitinol():
     m = nitinol()
     ik = flexkin.ik(m, (0.01, -0.02, 0.05))
