@@ -510,8 +510,8 @@ def _kinematics(a, mech):
 
         pose = (a.pose[0], a.pose[1], math.radians(a.pose[2]))
         with ProgressBar("flexkin ik", enabled=_progress(a)) as bar:
-            res = ik(mech, pose, load=a.load, max_mode=a.max_mode, max_winding=a.max_winding, time_budget=getattr(a, "time_budget", None),
-                     progress=bar, margin=getattr(a, "margin", False))
+            res = ik(mech, pose, load=a.load, max_mode=a.max_mode, max_winding=a.max_winding,
+                     time_budget=getattr(a, "time_budget", None), progress=bar, margin=getattr(a, "margin", False))
         what = f"inverse kinematics at pose ({a.pose[0]:g} m, {a.pose[1]:g} m, {a.pose[2]:g} deg)"
         return res, what
     from .mechanism.plausibility import revolute_inputs_look_like_radians
@@ -527,8 +527,8 @@ def _kinematics(a, mech):
             _angle_arg(v, f"--inputs U{i + 1}")
     u = [float(leg.from_display(v)) for v, leg in zip(a.inputs, mech.legs)]
     with ProgressBar("flexkin fk", enabled=_progress(a)) as bar:
-        res = fk(mech, u, load=a.load, max_mode=a.max_mode, max_winding=a.max_winding, time_budget=getattr(a, "time_budget", None),
-                 progress=bar, margin=getattr(a, "margin", False))
+        res = fk(mech, u, load=a.load, max_mode=a.max_mode, max_winding=a.max_winding,
+                 time_budget=getattr(a, "time_budget", None), progress=bar, margin=getattr(a, "margin", False))
     units = [leg.input_unit for leg in mech.legs]
     what = "forward kinematics at inputs (" + ", ".join(f"{v:g} {un}" for v, un in zip(a.inputs, units)) + ")"
     return res, what
@@ -616,7 +616,9 @@ def _cmd_kinematics(a) -> int:
         print(_dump(d))
     else:
         load = ", ".join(f"{v:g}" for v in res.load)
-        scope = f"d-modes <= {res.max_mode}" + (f", |winding| <= {res.max_winding}" if "clamped" in mech.joints else "")
+        scope = f"d-modes <= {res.max_mode}"
+        if "clamped" in mech.joints:
+            scope += f", |winding| <= {res.max_winding}"
         print(f"{mech.name}: {what}, load ({load}), {scope}: {len(res)} solution(s) "
               f"in {res.elapsed:.2f} s" + ("" if res.complete else " (search incomplete)"))
         if len(res):
