@@ -74,17 +74,22 @@ def sample(solutions, n: int = 60):
     return sols if len(sols) <= n else sols[::math.ceil(len(sols) / n)]
 
 
-def shoot(rod):
-    """Integrate the rod from its clamp (x, y, theta, m) with its tip force and base moment."""
+def integrate(rod, t_eval=None):
+    """The rod integrated from its clamp (x, y, theta, m) with its tip force and base moment
+    (scipy's DOP853 solution object; ``t_eval`` arc lengths to sample)."""
     f = np.asarray(rod.tip_force, float)
 
     def rhs(s, y):
         return [math.cos(y[2]), math.sin(y[2]), y[3] / rod.EI, f[0] * math.sin(y[2]) - f[1] * math.cos(y[2])]
 
     y0 = [rod.clamp[0], rod.clamp[1], rod.clamp_angle, rod.base_moment]
-    sol = solve_ivp(rhs, (0.0, rod.length), y0, method="DOP853", rtol=1e-12,
-                    atol=1e-13 * max(1.0, abs(rod.base_moment)))
-    return sol.y[:, -1]
+    return solve_ivp(rhs, (0.0, rod.length), y0, method="DOP853", rtol=1e-12,
+                     atol=1e-13 * max(1.0, abs(rod.base_moment)), t_eval=t_eval)
+
+
+def shoot(rod):
+    """The rod's tip state (x, y, theta, m) integrated from its clamp."""
+    return integrate(rod).y[:, -1]
 
 
 def ode_errors(rod):
@@ -364,15 +369,7 @@ def test_fk_of_a_nearly_taut_mechanism():
 # ======================================================================================
 def _interior_sign_changes(rod, n: int = 4001) -> int:
     """Sign changes of the bending moment strictly inside the rod, on its ODE-integrated shape."""
-    f = np.asarray(rod.tip_force, float)
-
-    def rhs(s, y):
-        return [math.cos(y[2]), math.sin(y[2]), y[3] / rod.EI, f[0] * math.sin(y[2]) - f[1] * math.cos(y[2])]
-
-    s = np.linspace(0.0, rod.length, n)
-    sol = solve_ivp(rhs, (0.0, rod.length), [rod.clamp[0], rod.clamp[1], rod.clamp_angle, rod.base_moment],
-                    method="DOP853", rtol=1e-12, atol=1e-12, t_eval=s)
-    m = sol.y[3][1:-1]
+    m = integrate(rod, np.linspace(0.0, rod.length, n)).y[3][1:-1]
     m = m[np.abs(m) > 1e-9 * (1.0 + np.max(np.abs(m)))]
     return int(np.count_nonzero(np.sign(m[1:]) != np.sign(m[:-1])))
 
