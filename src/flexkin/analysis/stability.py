@@ -816,7 +816,7 @@ def _rod_closed_form(rod: RodState, tip: str, g: NDArray) -> tuple[int, float]:
     eval_rod(int(rod.chart), z, q, gq)
     D = np.empty((4, 3))
     res = np.empty(7)
-    rod_terms(q[FX], q[FY], q[M0], int(rod.chart) == CHART_WRENCH, D, res)   # pinned charts: m(1) = 0
+    rod_terms(q[FX], q[FY], q[M0], int(rod.chart) >= CHART_WRENCH, D, res)   # pinned charts: m(1) = 0
     u1, up1 = res[1], res[2]
     if int(res[5]) & (F_STRAIGHT | F_NONFINITE | F_ENDS):
         return -1, 0.0
