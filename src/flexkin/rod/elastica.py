@@ -47,7 +47,22 @@ import numpy as np
 
 from ..core.jit import njit
 from .elliptic import complete, fedb
-from .orbit import AB, AM, CN, DB, DN, DU, DV, EB, EU, NP, SN, modulus, orbit_constants, orbit_point
+from .orbit import (
+    AB,
+    AM,
+    CN,
+    DB,
+    DN,
+    DU,
+    DV,
+    EB,
+    EU,
+    NP,
+    SN,
+    modulus,
+    orbit_constants,
+    orbit_point,
+)
 from .slots import EN, FX, FY, M0, ML, PHI, TH, X, Y
 
 __all__ = ["lib_eval", "rot_eval", "window_tip", "window_values", "window_profile", "window_mode", "window_peak", "reduce_window",

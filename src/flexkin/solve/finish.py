@@ -35,7 +35,7 @@ from ..rod.closed_form import mode_of, pinned_chart
 from ..rod.kernels import CHART_SEAM, CHART_WRENCH, PHI, TH, clamped_mode
 from ..rod.seam_atlas import seam_in_scope
 from ..rod.slots import X as X_, Y as Y_
-from ..rod.wrench_atlas import in_wrench_scope, lambda_max
+from ..rod.wrench_atlas import in_wrench_scope
 from ..rod.state import RodState
 from ..system import System
 from .corrector import RESIDUAL_TOL
@@ -50,9 +50,9 @@ SCOPE_MESSAGE = ("equilibria with a rod near straight under tension beyond the n
                  "solution list is incomplete there")
 
 
-def force_limit_message(max_mode: int) -> str:
-    """Why a result is incomplete when a clamped leg's search reached its grid's force limit."""
-    lam = lambda_max(max_mode)
+def force_limit_message(lam: float) -> str:
+    """Why a result is incomplete when a clamped leg's search reached its force limit
+    ``lambda L = lam``."""
     return (f"the search for clamped rods reached its numerical force limit (lambda L = {lam:g}, a tip force of "
             f"{lam * lam:g} EI/L^2) and did not look beyond it: equilibria with a more heavily loaded clamped rod "
             "may be missing")
