@@ -390,6 +390,10 @@ def bordered(ch, z, alpha, ell, e, force, arm, clamped, B) -> tuple[int, float, 
             v = max(dB[r, c], dB[c, r])
             dB[r, c] = v
             dB[c, r] = v
+    for r in range(n):
+        for c in range(n):
+            if not abs(B[r, c]) < math.inf:  # a taut rod's Jacobi fields overflow: undecided here
+                return 0, 0.0, flag | F_NONFINITE, 1
     # equilibrate (Ruiz: symmetric scaling by the rows' maxima; congruent, same inertia)
     Bn = B[:n, :n].copy()
     d = np.empty(n)
