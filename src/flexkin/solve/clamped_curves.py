@@ -135,24 +135,20 @@ def _sensitivity(gr) -> float:
 
 
 @njit
-def _rechart(chart, z, q, qw, gw, znew) -> int:
-    """The chart a trace at ``z`` (evaluated into ``q``) continues in (its coordinates into
-    ``znew``): the rod's elastica window once the wrench chart's tip sensitivity passes
-    :data:`SENS_WINDOW`, the wrench chart again below :data:`SENS_WRENCH`; ``chart`` if no
-    change."""
+def _rechart(chart, z, q, sens, znew) -> int:
+    """The chart a trace at ``z`` (evaluated into ``q``; ``sens`` the wrench chart's tip
+    sensitivity there, :func:`_sensitivity`) continues in (its coordinates into ``znew``): the
+    rod's elastica window once ``sens`` passes :data:`SENS_WINDOW`, the wrench chart again below
+    :data:`SENS_WRENCH`; ``chart`` if no change."""
     if chart == CHART_WRENCH:
-        if not q[PHI] > 0.0:
-            return chart
-        wrench_eval(z[0], z[1], z[2], qw, gw)
-        if _sensitivity(gw) <= SENS_WINDOW:
+        if sens <= SENS_WINDOW or not q[PHI] > 0.0:
             return chart
         rot, v, us, ue = window_of(z[0], z[1], z[2])
         if not v == v:
             return chart
         znew[0], znew[1], znew[2] = v, us, ue
         return CHART_ROT if rot else CHART_LIB
-    wrench_eval(q[FX], q[FY], q[M0], qw, gw)
-    if _sensitivity(gw) >= SENS_WRENCH:
+    if sens >= SENS_WRENCH:
         return chart
     znew[0], znew[1], znew[2] = q[FX], q[FY], q[M0]
     return CHART_WRENCH
@@ -231,11 +227,13 @@ def _wkey(chart, z) -> int:
 
 
 @njit
-def _mark(chart, za, zb, wa, wb, lam_nodes, npsi, nt, mext, visited, wvisited) -> None:
-    """Record the segment ``za -> zb`` (chart ``chart``; base wrenches ``wa``, ``wb``) as traced, in
-    both records: the wrench-atlas cells of its base wrenches and the cells of its elastica
-    windows (seeds are looked up in one or the other, :func:`_trace_all`)."""
+def _mark(chart, za, zb, wa, wb, lam_nodes, npsi, nt, mext, visited, wvisited, windows) -> None:
+    """Record the segment ``za -> zb`` (chart ``chart``; base wrenches ``wa``, ``wb``) as traced:
+    the wrench-atlas cells of its base wrenches and, with ``windows`` (a rod near taut, where
+    seeds are looked up by their windows, :func:`_trace_all`), the cells of its elastica windows."""
     _visit_segment(wa, wb, lam_nodes, npsi, nt, mext, visited)
+    if not windows:
+        return
     ya, yb = np.empty(3), np.empty(3)
     ch = chart
     if chart == CHART_WRENCH:
@@ -363,9 +361,15 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
         if not accepted:
             break
         tprev[0], tprev[1], tprev[2] = t0, t1, t2
-        eval_rod(chart, zp, q, gr)
+        # q, gr: the corrector's last evaluation, at zp
         wb[0], wb[1], wb[2] = q[FX], q[FY], q[M0]
-        _mark(chart, z, zp, wa, wb, lam_nodes, npsi, nt, mext, visited, wvisited)
+        if chart == CHART_WRENCH:
+            sens = _sensitivity(gr)
+        else:
+            wrench_eval(wb[0], wb[1], wb[2], qw, gw)
+            sens = _sensitivity(gw)
+        _mark(chart, z, zp, wa, wb, lam_nodes, npsi, nt, mext, visited, wvisited,
+              chart != CHART_WRENCH or sens > SENS_WRENCH)
         z[0], z[1], z[2] = zp[0], zp[1], zp[2]
         steps += 1
         g, gx, gy, al, ax, ay, adm = condition_eval(code, p0, p1, q[X], q[Y])
@@ -384,7 +388,7 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
                 out[n_out, 0], out[n_out, 1], out[n_out, 2] = z0[0], z0[1], z0[2]
                 n_out += 1
                 break
-        nxt = _rechart(chart, z, q, qw, gw, znext)
+        nxt = _rechart(chart, z, q, sens, znext)
         if nxt != chart:
             for c in range(3):
                 ref[c] = wb[c] - wa[c]
