@@ -25,6 +25,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import flexkin
+from flexkin.rod.kernels import PHI
 from flexkin.analysis.stability import _margins, _rod_closed_form, _rod_discretised, mechanism_stability
 from flexkin.rod.kernels import CHART_WRENCH
 from flexkin.rod.state import RodState
@@ -62,7 +63,10 @@ def _compare(system, X, C):
     """Closed form vs discretisation: (agreeing, unresolved by the discretisation, fallbacks)."""
     st = mechanism_stability(system, X, C)
     mu, res, fidx, _ = _margins(system, X, C, np.full(len(X), -1), True)
-    resolved = (fidx >= 0) & (np.abs(mu) > 3.0 * res)
+    # resolved: a margin clear of its error estimate, and an index that agrees with the margin's
+    # sign (a banded discretisation too coarse for a taut rod's boundary layers, of width
+    # L / (lambda L), can report index 1 with a positive margin: that is not a reference)
+    resolved = (fidx >= 0) & (np.abs(mu) > 3.0 * res) & ((fidx == 0) == (mu > 0.0))
     bad = resolved & (st.index >= 0) & ((st.index != fidx) | ((st.stable == 1) != (mu > 0.0)))
     assert not np.any(bad), [(k, st.index[k], fidx[k], mu[k], res[k]) for k in np.flatnonzero(bad)]
     agree = int(np.count_nonzero(resolved & (st.index >= 0)))
@@ -78,7 +82,12 @@ def test_closed_form_equals_discretised_on_the_test_mechanisms(file, pose, load)
         f"{len(X)} solutions: {agree} agree with the discretised second variation, {unresolved} unresolved by it, "
         f"{fallback} closed-form fallbacks")
     assert agree >= len(X) - unresolved
-    assert fallback <= max(1, len(X) // 10)
+    # the closed form works with the rods' Jacobi fields in their base wrench, which lose digits
+    # like exp(lambda L) on a taut rod: beyond lambda L = 16 (forces above 256 EI/L^2, in reach
+    # since the elastica windows) it may defer to the discretisation; below, rarely
+    q, _ = system.unit_rods(X, C)
+    moderate = q[..., PHI].max(axis=1) <= 16.0
+    assert np.count_nonzero((st.flags != 0) & moderate) <= max(1, np.count_nonzero(moderate) // 10)
     assert np.any(st.stable == 1) or file.startswith("unit_3rfr")
 
 

@@ -297,7 +297,7 @@ def eval_one(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_re
     nu = x.shape[0]
     for i in range(3):
         col = rod_col[i]
-        dim = 3 if chart[i] == CHART_WRENCH else 2
+        dim = 3 if chart[i] >= CHART_WRENCH else 2
         eval_rod(chart[i], x[col:col + dim], q[i], g[i])
     assemble(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_ref, x, chart, load, r, J, want_J,
              q, g)
@@ -334,7 +334,7 @@ def assemble(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_re
         L = c0[i, 3] + c1[i, 3] * u
         dAx, dAy, dal, dL = c1[i, 0], c1[i, 1], c1[i, 2], c1[i, 3]
         col = rod_col[i]
-        dim = 3 if chart[i] == CHART_WRENCH else 2
+        dim = 3 if chart[i] >= CHART_WRENCH else 2
         ca, sa = math.cos(al), math.sin(al)
         # rotated unit-rod tip and force (local -> world directions)
         rx = ca * qi[X] - sa * qi[Y]

@@ -208,12 +208,14 @@ def rod_max_curvature(rod: Any, n_samples: int = 0) -> float:
     -------
     float
     """
-    from ..rod.kernels import CHART_WRENCH
+    from ..rod.kernels import CHART_WRENCH, clamped_peak
 
     EI = float(rod.EI)
     kmax = max(abs(float(rod.base_moment)), abs(float(rod.tip_moment))) / EI
     if rod.chart == CHART_WRENCH:
         kmax = max(kmax, _wrench_interior_peak(rod))
+    elif rod.chart > CHART_WRENCH:  # an elastica window: closed form
+        kmax = max(kmax, clamped_peak(int(rod.chart), np.asarray(rod.coords, dtype=float)) / float(rod.length))
     else:
         lam = math.sqrt(max(float(rod.R), 0.0) / EI)
         peak = 2.0 * abs(float(rod.ku)) * lam

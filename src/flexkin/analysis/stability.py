@@ -390,6 +390,10 @@ def bordered(ch, z, alpha, ell, e, force, arm, clamped, B) -> tuple[int, float, 
             v = max(dB[r, c], dB[c, r])
             dB[r, c] = v
             dB[c, r] = v
+    for r in range(n):
+        for c in range(n):
+            if not abs(B[r, c]) < math.inf:  # a taut rod's Jacobi fields overflow: undecided here
+                return 0, 0.0, flag | F_NONFINITE, 1
     # equilibrate (Ruiz: symmetric scaling by the rows' maxima; congruent, same inertia)
     Bn = B[:n, :n].copy()
     d = np.empty(n)
@@ -816,7 +820,7 @@ def _rod_closed_form(rod: RodState, tip: str, g: NDArray) -> tuple[int, float]:
     eval_rod(int(rod.chart), z, q, gq)
     D = np.empty((4, 3))
     res = np.empty(7)
-    rod_terms(q[FX], q[FY], q[M0], int(rod.chart) == CHART_WRENCH, D, res)   # pinned charts: m(1) = 0
+    rod_terms(q[FX], q[FY], q[M0], int(rod.chart) >= CHART_WRENCH, D, res)   # pinned charts: m(1) = 0
     u1, up1 = res[1], res[2]
     if int(res[5]) & (F_STRAIGHT | F_NONFINITE | F_ENDS):
         return -1, 0.0

@@ -29,7 +29,7 @@ import numpy as np
 from ..core.jit import njit
 from .elliptic import HALF_PI, complete, fedb
 
-__all__ = ["libration_grid", "rotation_grid", "fill_libration", "fill_rotation", "FEATURES"]
+__all__ = ["libration_grid", "rotation_grid", "fill_libration", "fill_rotation", "node_windows", "FEATURES"]
 
 #: per node: x, y, fx, fy, theta, m_L, a, b, m0, lambda, mode
 FEATURES = 11
@@ -147,3 +147,21 @@ def fill_rotation(nu, chi0, dchi, out) -> None:
         for j in range(chi0.shape[0]):
             for k in range(dchi.shape[0]):
                 _rot_node(nu[i], chi0[j], dchi[k], out[i, j, k])
+
+
+@njit
+def node_windows(lib: bool, a: np.ndarray, b: np.ndarray, c: np.ndarray, out: np.ndarray) -> None:
+    """Elastica-window coordinates ``(v, u_s, u_e)`` (:mod:`~flexkin.rod.elastica`) of grid nodes
+    ``(a[r], b[r], c[r])`` into ``out`` (n, 3): a libration node ``(v, phi_e, s)`` is the window
+    ``(v, F(phi_e - s), F(phi_e))``, a rotation node ``(nu, chi_0, d_chi)`` the window
+    ``(nu, F(chi_0), F(chi_0 + d_chi))`` (elliptic time ``u = F(am u)``, exact in ``k'``)."""
+    for r in range(a.shape[0]):
+        av = min(abs(a[r]), 350.0)
+        kp = 2.0 * math.exp(-av) / (1.0 + math.exp(-2.0 * av))
+        k = math.tanh(a[r])
+        m, kp2 = k * k, kp * kp
+        K, Ec, Dc, Bc = complete(m, kp2)
+        p_s, p_e = (b[r] - c[r], b[r]) if lib else (b[r], b[r] + c[r])
+        out[r, 0] = a[r]
+        out[r, 1] = fedb(p_s, m, kp2, K, Ec, Dc, Bc)[0]
+        out[r, 2] = fedb(p_e, m, kp2, K, Ec, Dc, Bc)[0]

@@ -24,6 +24,10 @@ Charts (all share the substitution of paper §2, ``cos((theta - psi)/2) = k sin(
 * ``CHART_WRENCH`` ``(fx, fy, m0)``: a rod with a free tip (clamped joints), given by its
   dimensionless base wrench; evaluated in closed form through the libration (``k^2 < 1``) or
   rotation (``k^2 > 1``, non-inflectional) elastica.
+* ``CHART_LIB``, ``CHART_ROT`` ``(v, u_s, u_e)``: the same clamped rods as windows of a
+  librating or rotating elastica orbit in elliptic time (:mod:`~flexkin.rod.elastica`), well
+  conditioned for taut rods (orbits passing close to the saddle), where the wrench chart loses
+  the tip's digits like ``exp(lambda L)``.
 
 The derivative formulas follow from DLMF 19.4.1-19.4.4 (see :mod:`~flexkin.rod.elliptic`);
 with ``m = tanh(v)^2``: ``dF/dv = ku (F - D - sin cos / Delta)``, ``dE/dv = -k'^2 ku D``.
@@ -37,13 +41,15 @@ import numpy as np
 from ..core.jit import njit
 
 from .elliptic import HALF_PI, complete, fedb, inverse_f
-from .slots import (CHART_DIM, CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, EN, FX, FY, M0, ML, NQ, PHI, TH, X,
-                    Y)
-from .wrench import wrench_eval, wrench_profile
+from .elastica import V_CAP, lib_eval, rot_eval, window_mode, window_peak, window_profile
+from .slots import (CHART_DIM, CHART_LIB, CHART_ROT, CHART_SEAM, CHART_UNIFIED, CHART_WRENCH, EN, FX, FY, M0, ML,
+                    NQ, PHI, TH, X, Y)
+from .wrench import wrench_eval, wrench_mode, wrench_profile
 
 __all__ = [
     "NQ", "X", "Y", "TH", "FX", "FY", "M0", "ML", "EN", "PHI",
-    "CHART_UNIFIED", "CHART_SEAM", "CHART_WRENCH", "CHART_DIM",
+    "CHART_UNIFIED", "CHART_SEAM", "CHART_WRENCH", "CHART_LIB", "CHART_ROT", "CHART_DIM", "clamped_mode",
+    "clamped_peak",
     "unified_eval", "seam_eval", "eval_rod", "project", "V_MAX", "eval_rods", "profile", "profile_batch", "tangents",
 ]
 
@@ -134,7 +140,8 @@ def project(chart: int, z: np.ndarray) -> None:
     where the chart is polar (``sqrt(R) ~ pi/2 - phis``, ``psi = 2 arccos(ku)``); it continues
     on the other side with the force reversed: ``phis -> pi - phis`` and ``psi -> psi +- pi``,
     i.e. ``a -> a -+ pi/2`` for the Gudermannian angle ``a = arcsin(ku)`` of ``v``.  ``|v|`` is
-    capped at :data:`V_MAX`.  Seam chart: ``|psi_s| < pi`` and ``0 < chi < pi/2``.
+    capped at :data:`V_MAX`.  Seam chart: ``|psi_s| < pi`` and ``0 < chi < pi/2``.  Elastica
+    windows: ``|v| <=`` :data:`~flexkin.rod.elastica.V_CAP`.
     """
     if chart == CHART_UNIFIED:
         if z[1] > HALF_PI - 1e-12:
@@ -146,6 +153,10 @@ def project(chart: int, z: np.ndarray) -> None:
     elif chart == CHART_SEAM:
         z[0] = min(max(z[0], -math.pi + 1e-9), math.pi - 1e-9)
         z[1] = min(max(z[1], 1e-12), HALF_PI - 1e-9)
+    elif chart == CHART_LIB:
+        z[0] = min(max(z[0], -V_CAP), V_CAP)
+    elif chart == CHART_ROT:
+        z[0] = min(abs(z[0]), V_CAP)  # only kappa^2 enters a rotating window
 
 
 @njit(cache=True)
@@ -246,6 +257,10 @@ def eval_rod(chart: int, z: np.ndarray, out: np.ndarray, grad: np.ndarray) -> No
         unified_eval(z[0], z[1], out, grad)
     elif chart == CHART_SEAM:
         seam_eval(z[0], z[1], out, grad)
+    elif chart == CHART_LIB:
+        lib_eval(z[0], z[1], z[2], out, grad)
+    elif chart == CHART_ROT:
+        rot_eval(z[0], z[1], z[2], out, grad)
     else:
         wrench_eval(z[0], z[1], z[2], out, grad)
 
@@ -305,6 +320,8 @@ def profile(chart: int, z: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
     """Unit rod in chart ``chart`` sampled at arc lengths ``s``: ``out[:, 0:4] = x, y, theta, m``."""
     if chart == CHART_UNIFIED:
         unified_profile(z[0], z[1], s, out)
+    elif chart == CHART_LIB or chart == CHART_ROT:
+        window_profile(chart == CHART_ROT, z[0], z[1], z[2], s, out)
     else:
         wrench_profile(z[0], z[1], z[2], s, out)
 
@@ -360,3 +377,21 @@ def tangents(chart: int, z: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
         prof = np.empty((s.shape[0], 4))
         profile(chart, z, s, prof)
         out[:] = prof[:, 2]
+
+
+@njit(cache=True)
+def clamped_mode(chart: int, z: np.ndarray, tol: float) -> tuple[int, bool]:
+    """d-mode of a clamped unit rod (SPEC §2: its inflections strictly inside) and whether an
+    inflection sits at an end to within ``tol`` (``mode_boundary``: it then counts at the end)."""
+    if chart == CHART_LIB or chart == CHART_ROT:
+        return window_mode(chart == CHART_ROT, z[0], z[1], z[2], tol)
+    return wrench_mode(z[0], z[1], z[2], tol)
+
+
+@njit(cache=True)
+def clamped_peak(chart: int, z: np.ndarray) -> float:
+    """Largest ``|theta'|`` along a clamped unit rod in an elastica-window chart (closed form);
+    NaN in the wrench chart (sample its profile)."""
+    if chart == CHART_LIB or chart == CHART_ROT:
+        return window_peak(chart == CHART_ROT, z[0], z[1], z[2])
+    return math.nan

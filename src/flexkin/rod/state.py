@@ -132,7 +132,7 @@ class RodState:
             v, ph = pinned_chart(coords[pinned, :2], charts[pinned])
             k[pinned] = to_paper(np.tanh(v), ph)[0]
         if dims is None:
-            dims = np.where(charts == CHART_WRENCH, 3, 2)
+            dims = np.where(charts >= CHART_WRENCH, 3, 2)
         sc = EI / L
         return [cls(mode=int(modes[r]), k=float(k[r]), psi=float(psi[r]), length=float(L[r]), EI=float(EI[r]),
                     clamp=(float(c[r, 0]), float(c[r, 1])), clamp_angle=float(al[r]),
@@ -160,14 +160,14 @@ class RodState:
     @property
     def v(self) -> float:
         """Solvers' chart variable ``v`` (``ku = tanh v``) of a pinned rod (NaN otherwise)."""
-        if self.chart == CHART_WRENCH:
+        if self.chart >= CHART_WRENCH:
             return float("nan")
         return _unified(self.chart, self.coords[0], self.coords[1])[0]
 
     @property
     def phis(self) -> float:
         """Unified clamp amplitude of a pinned rod (NaN otherwise)."""
-        if self.chart == CHART_WRENCH:
+        if self.chart >= CHART_WRENCH:
             return float("nan")
         return _unified(self.chart, self.coords[0], self.coords[1])[1]
 

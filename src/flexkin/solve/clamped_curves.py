@@ -23,14 +23,34 @@ import math
 from functools import lru_cache
 
 import numpy as np
+from numba import types
+from numba.typed import Dict
 from numpy.typing import NDArray
 
-from ..core.jit import njit
 from ..core.geometry2d import rotate
 from ..core.geometry2d_kernels import wrap_angle
-from ..rod.slots import EN, FX, FY, ML, NQ, TH, X, Y
-from ..rod.wrench import wrench_eval, wrench_mode
-from ..rod.wrench_atlas import get_wrench_atlas, lambda_max, moment_extra, turning_max
+from ..core.jit import njit
+from ..rod.elastica import reduce_window, window_of
+from ..rod.elliptic import complete
+from ..rod.kernels import clamped_mode, eval_rod, eval_rods, project
+from ..rod.orbit import modulus
+from ..rod.slots import (
+    CHART_LIB,
+    CHART_ROT,
+    CHART_WRENCH,
+    EN,
+    FX,
+    FY,
+    M0,
+    ML,
+    NQ,
+    PHI,
+    TH,
+    X,
+    Y,
+)
+from ..rod.wrench import wrench_eval
+from ..rod.wrench_atlas import get_wrench_atlas, moment_extra, turning_max
 from .conditions import condition_eval
 from .leg_curve import LegCurve
 
@@ -40,13 +60,28 @@ TWO_PI = 2.0 * math.pi
 #: turning (rad) traced beyond the winding scope, which is applied exactly to refined solutions
 TURN_MARGIN = 0.5
 MAX_POINTS = 4000
+#: ``lambda L`` at which a trace stops: the search's numerical force limit (a tip force of
+#: 4096 EI/L^2; the elastica windows resolve taut rods far beyond it, the limit bounds the work
+#: of tracing the curves' tails towards the straight rod under infinite tension)
+LAMBDA_LIMIT = 64.0
+
+
+#: tip sensitivity to the base moment, ``|d(x, y, theta)/d m0|`` of the unit rod, above which a
+#: trace leaves the wrench chart for the rod's elastica window (a taut rod: the sensitivity grows
+#: like ``exp(lambda L)`` along an orbit near the saddle), and below which it comes back
+SENS_WINDOW = 1e3
+SENS_WRENCH = 1e2
+#: chart switches traced at most from one seed in one direction
+MAX_SWITCHES = 12
+#: the traced-curve record's grid of base wrenches: lambda nodes, directions, base moments
+N_VISIT = (128, 96, 97)
 
 
 @njit
-def _G(z, code, p0, p1, tgt, q, gr, J):
-    """Residual ``(g, angle)`` of the two conditions at ``z``, its Jacobian ``J`` (2, 3) and
-    whether the tip is admissible."""
-    wrench_eval(z[0], z[1], z[2], q, gr)
+def _G(chart, z, code, p0, p1, tgt, q, gr, J):
+    """Residual ``(g, angle)`` of the two conditions at ``z`` (chart ``chart``), its Jacobian
+    ``J`` (2, 3) and whether the tip is admissible."""
+    eval_rod(chart, z, q, gr)
     g, gx, gy, al, ax, ay, adm = condition_eval(code, p0, p1, q[X], q[Y])
     for c in range(3):
         J[0, c] = gx * gr[X, c] + gy * gr[Y, c]
@@ -55,10 +90,10 @@ def _G(z, code, p0, p1, tgt, q, gr, J):
 
 
 @njit
-def _correct(z, code, p0, p1, tgt, q, gr, J, iters, tol) -> bool:
+def _correct(chart, z, code, p0, p1, tgt, q, gr, J, iters, tol) -> bool:
     """Minimum-norm Newton onto the curve (in place); True when it converged."""
     for _ in range(iters):
-        g0, g1, adm = _G(z, code, p0, p1, tgt, q, gr, J)
+        g0, g1, adm = _G(chart, z, code, p0, p1, tgt, q, gr, J)
         if not (g0 == g0 and g1 == g1):
             return False
         if max(abs(g0), abs(g1)) < tol:
@@ -73,13 +108,19 @@ def _correct(z, code, p0, p1, tgt, q, gr, J, iters, tol) -> bool:
         w1 = (-b * g0 + a * g1) / det
         for c in range(3):
             z[c] -= J[0, c] * w0 + J[1, c] * w1
-    g0, g1, adm = _G(z, code, p0, p1, tgt, q, gr, J)
+        if chart != CHART_WRENCH:
+            project(chart, z)
+    g0, g1, adm = _G(chart, z, code, p0, p1, tgt, q, gr, J)
     return max(abs(g0), abs(g1)) < tol
 
 
 @njit
-def _metric(z, mext) -> tuple:
-    """Per-coordinate scales of the chart near ``z`` (the atlas' cell sizes grow with the load)."""
+def _metric(chart, z, q, mext) -> tuple:
+    """Per-coordinate scales of the chart near ``z`` (the atlas' cell sizes grow with the load;
+    an elastica window's times with ``lambda L``)."""
+    if chart != CHART_WRENCH:
+        sc = 1.0 + 0.1 * q[PHI]
+        return sc, sc, sc
     R = math.hypot(z[0], z[1])
     lam = math.sqrt(R)
     sf = 1.0 + R
@@ -88,9 +129,35 @@ def _metric(z, mext) -> tuple:
 
 
 @njit
-def _cell(z, lam_nodes, npsi, nt, mext):
-    """Atlas cell (i, j, k) containing ``z`` (-1 if outside)."""
-    R = math.hypot(z[0], z[1])
+def _sensitivity(gr) -> float:
+    """``|d(x, y, theta)/d m0|`` from a wrench-chart gradient."""
+    return abs(gr[X, 2]) + abs(gr[Y, 2]) + abs(gr[TH, 2])
+
+
+@njit
+def _rechart(chart, z, q, sens, znew) -> int:
+    """The chart a trace at ``z`` (evaluated into ``q``; ``sens`` the wrench chart's tip
+    sensitivity there, :func:`_sensitivity`) continues in (its coordinates into ``znew``): the
+    rod's elastica window once ``sens`` passes :data:`SENS_WINDOW`, the wrench chart again below
+    :data:`SENS_WRENCH`; ``chart`` if no change."""
+    if chart == CHART_WRENCH:
+        if sens <= SENS_WINDOW or not q[PHI] > 0.0:
+            return chart
+        rot, v, us, ue = window_of(z[0], z[1], z[2])
+        if not v == v:
+            return chart
+        znew[0], znew[1], znew[2] = v, us, ue
+        return CHART_ROT if rot else CHART_LIB
+    if sens >= SENS_WRENCH:
+        return chart
+    znew[0], znew[1], znew[2] = q[FX], q[FY], q[M0]
+    return CHART_WRENCH
+
+
+@njit
+def _cell(w, lam_nodes, npsi, nt, mext):
+    """Atlas cell (i, j, k) containing the base wrench ``w`` (-1 if outside)."""
+    R = math.hypot(w[0], w[1])
     lam = math.sqrt(R)
     nl = lam_nodes.shape[0]
     if lam >= lam_nodes[nl - 1]:
@@ -98,11 +165,11 @@ def _cell(z, lam_nodes, npsi, nt, mext):
     i = 0
     while i < nl - 2 and lam_nodes[i + 1] <= lam:
         i += 1
-    psi = math.atan2(z[1], z[0])
+    psi = math.atan2(w[1], w[0])
     if psi < 0.0:
         psi += TWO_PI
     j = int(psi / (TWO_PI / npsi)) % npsi
-    t = z[2] / (2.0 * lam + mext)
+    t = w[2] / (2.0 * lam + mext)
     k = int((t + 1.0) * 0.5 * (nt - 1))
     if k < 0 or k >= nt - 1:
         return -1, -1, -1
@@ -110,19 +177,20 @@ def _cell(z, lam_nodes, npsi, nt, mext):
 
 
 @njit
-def _visit(z, lam_nodes, npsi, nt, mext, visited) -> None:
-    """Mark the cell of ``z`` as traced."""
-    i, j, k = _cell(z, lam_nodes, npsi, nt, mext)
+def _visit(w, lam_nodes, npsi, nt, mext, visited) -> None:
+    """Mark the cell of the base wrench ``w`` as traced."""
+    i, j, k = _cell(w, lam_nodes, npsi, nt, mext)
     if i < 0:
         return
     visited[i, j, k] = True
 
 
 @njit
-def _visit_segment(za, zb, lam_nodes, npsi, nt, mext, visited) -> None:
-    """Mark every cell the chord ``za -> zb`` passes through (subdivided where it jumps cells)."""
-    ia, ja, ka = _cell(za, lam_nodes, npsi, nt, mext)
-    ib, jb, kb = _cell(zb, lam_nodes, npsi, nt, mext)
+def _visit_segment(wa, wb, lam_nodes, npsi, nt, mext, visited) -> None:
+    """Mark every cell the chord ``wa -> wb`` (base wrenches) passes through (subdivided where it
+    jumps cells)."""
+    ia, ja, ka = _cell(wa, lam_nodes, npsi, nt, mext)
+    ib, jb, kb = _cell(wb, lam_nodes, npsi, nt, mext)
     dj = abs(ja - jb)
     dj = min(dj, npsi - dj)
     m = max(abs(ia - ib), dj, abs(ka - kb)) + 1
@@ -132,56 +200,158 @@ def _visit_segment(za, zb, lam_nodes, npsi, nt, mext, visited) -> None:
     zc = np.empty(3)
     for r in range(m + 1):
         f = r / m
-        zc[0] = za[0] + f * (zb[0] - za[0])
-        zc[1] = za[1] + f * (zb[1] - za[1])
-        zc[2] = za[2] + f * (zb[2] - za[2])
+        zc[0] = wa[0] + f * (wb[0] - wa[0])
+        zc[1] = wa[1] + f * (wb[1] - wa[1])
+        zc[2] = wa[2] + f * (wb[2] - wa[2])
         _visit(zc, lam_nodes, npsi, nt, mext, visited)
 
 
+#: cell sizes of the traced-window record: ``v``, ``u_s`` (reduced by whole periods), ``u_e - u_s``
+WIN_CELL = (0.25, 0.25, 0.5)
+
+
 @njit
-def _in_scope(z, q, max_mode, lam_max, turn_max) -> int:
-    """0 if the rod ``z`` is searched; 1 if its ``lambda L`` is beyond the search's numerical
-    limit ``lam_max``; 2 if it is outside the scope (tangent turning or d-mode)."""
-    if math.sqrt(math.hypot(z[0], z[1])) > lam_max * 1.02:
+def _wkey(chart, z) -> int:
+    """Key of the cell of the elastica window ``z`` (chart ``chart``) in the traced-window record
+    (a librating window of ``-v`` is the same rod shifted by half a period)."""
+    v, us, ue = z[0], z[1], z[2]
+    if chart == CHART_LIB and v < 0.0:
+        k, kp = modulus(v)
+        K = complete(k * k, kp * kp)[0]
+        v, us, ue = -v, us + 2.0 * K, ue + 2.0 * K
+    us, ue = reduce_window(chart == CHART_ROT, v, us, ue)
+    iv = min(max(int(math.floor(v / WIN_CELL[0])), -1000), 1000) + 1000
+    iu = min(max(int(math.floor(us / WIN_CELL[1])), -4000), 4000) + 4000
+    il = min(max(int(math.floor((ue - us) / WIN_CELL[2])), -4000), 4000) + 4000
+    return (((chart - CHART_LIB) * 2001 + iv) * 8001 + iu) * 8001 + il
+
+
+@njit
+def _mark(chart, za, zb, wa, wb, lam_nodes, npsi, nt, mext, visited, wvisited, windows) -> None:
+    """Record the segment ``za -> zb`` (chart ``chart``; base wrenches ``wa``, ``wb``) as traced:
+    the wrench-atlas cells of its base wrenches and, with ``windows`` (a rod near taut, where
+    seeds are looked up by their windows, :func:`_trace_all`), the cells of its elastica windows."""
+    _visit_segment(wa, wb, lam_nodes, npsi, nt, mext, visited)
+    if not windows:
+        return
+    ya, yb = np.empty(3), np.empty(3)
+    ch = chart
+    if chart == CHART_WRENCH:
+        ra, ya[0], ya[1], ya[2] = window_of(wa[0], wa[1], wa[2])
+        rb, yb[0], yb[1], yb[2] = window_of(wb[0], wb[1], wb[2])
+        if ra != rb or not (ya[0] == ya[0] and yb[0] == yb[0]):
+            return
+        ch = CHART_ROT if ra else CHART_LIB
+    else:
+        ya[:] = za
+        yb[:] = zb
+    m = 1
+    for c in range(3):
+        m = max(m, int(abs(yb[c] - ya[c]) / WIN_CELL[c]) + 1)
+    m = min(m, 64)
+    zc = np.empty(3)
+    for r in range(m + 1):
+        f = r / m
+        for c in range(3):
+            zc[c] = ya[c] + f * (yb[c] - ya[c])
+        wvisited[_wkey(ch, zc)] = True
+
+
+@njit
+def _near_traced(w, lam_nodes, npsi, nt, mext, visited) -> bool:
+    """Whether the wrench-atlas cell of the base wrench ``w`` or one of its 26 neighbours was
+    traced (a curve passing close to a cell boundary may have marked the neighbour only)."""
+    i, j, k = _cell(w, lam_nodes, npsi, nt, mext)
+    if i < 0:
+        return False
+    ni, nk = visited.shape[0], visited.shape[2]
+    for di in range(-1, 2):
+        for dj in range(-1, 2):
+            for dk in range(-1, 2):
+                ii, kk = i + di, k + dk
+                if 0 <= ii < ni and 0 <= kk < nk and visited[ii, (j + dj) % npsi, kk]:
+                    return True
+    return False
+
+
+@njit
+def _near_traced_window(chart, z, wvisited) -> bool:
+    """Whether the cell of the elastica window ``z`` or one of its 26 neighbours was traced."""
+    zc = np.empty(3)
+    for di in range(-1, 2):
+        for dj in range(-1, 2):
+            for dk in range(-1, 2):
+                zc[0] = z[0] + di * WIN_CELL[0]
+                zc[1] = z[1] + dj * WIN_CELL[1]
+                zc[2] = z[2] + dk * WIN_CELL[2]
+                if _wkey(chart, zc) in wvisited:
+                    return True
+    return False
+
+
+@njit
+def _in_scope(chart, z, q, max_mode, lam_max, turn_max) -> int:
+    """0 if the rod ``z`` (evaluated into ``q``) is searched; 1 if its ``lambda L`` is beyond the
+    search's numerical limit ``lam_max``; 2 if it is outside the scope (turning or d-mode)."""
+    if q[PHI] > lam_max:
         return 1
     if abs(q[TH]) > turn_max + 1e-9:
         return 2
-    return 0 if wrench_mode(z[0], z[1], z[2], 1e-9)[0] <= max_mode else 2
+    return 0 if clamped_mode(chart, z, 1e-9)[0] <= max_mode else 2
 
 
 @njit
-def _trace_one(z0, direction, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, out, n_out, visited,
-               lam_nodes, npsi, nt, limits) -> int:
-    """Trace from the point ``z0`` on the curve along ``direction`` (+1/-1); appends points to
-    ``out`` from ``n_out``; returns the new count (stops at MAX_POINTS total).  A trace that
-    stops at the ``lambda L`` limit is counted in ``limits[0]``."""
+def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, out, n_out, visited,
+               wvisited, lam_nodes, npsi, nt, limits, znext) -> tuple:
+    """Trace from the point ``z0`` (chart ``chart``) on the curve, which is stored first, along
+    ``direction`` (+1/-1) -- or, when ``ref`` is nonzero, along the tangent whose base-wrench
+    change points like ``ref``; appends the points to ``out`` from ``n_out`` (stops at its end).
+    Returns ``(n_out, next_chart)``: ``next_chart >= 0`` when the trace must continue in another
+    chart from ``znext`` (then ``ref`` holds the last base-wrench step), -1 when it ended.  A
+    trace that stops at the ``lambda L`` limit is counted in ``limits[0]``."""
     q = np.empty(NQ)
     gr = np.empty((NQ, 3))
+    qw = np.empty(NQ)
+    gw = np.empty((NQ, 3))
     J = np.empty((2, 3))
     z = z0.copy()
     zp = np.empty(3)
     tprev = np.zeros(3)
+    wa = np.empty(3)
+    wb = np.empty(3)
+    use_ref = ref[0] != 0.0 or ref[1] != 0.0 or ref[2] != 0.0
     h = 0.02
     steps = 0
+    out[n_out, 0], out[n_out, 1], out[n_out, 2] = z[0], z[1], z[2]
+    n_out += 1
     while n_out < out.shape[0]:
-        _G(z, code, p0, p1, tgt, q, gr, J)
+        _G(chart, z, code, p0, p1, tgt, q, gr, J)
+        wa[0], wa[1], wa[2] = q[FX], q[FY], q[M0]
         t0 = J[0, 1] * J[1, 2] - J[0, 2] * J[1, 1]
         t1 = J[0, 2] * J[1, 0] - J[0, 0] * J[1, 2]
         t2 = J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]
-        s0, s1, s2 = _metric(z, mext)
+        s0, s1, s2 = _metric(chart, z, q, mext)
         nt_ = math.sqrt((t0 / s0) ** 2 + (t1 / s1) ** 2 + (t2 / s2) ** 2)
         if not nt_ > 0.0:
             break
         t0, t1, t2 = t0 / nt_, t1 / nt_, t2 / nt_
         if steps == 0:
-            t0, t1, t2 = direction * t0, direction * t1, direction * t2
+            if use_ref:
+                dw = 0.0
+                for c in range(3):
+                    dw += ref[c] * (gr[FX + c if c < 2 else M0, 0] * t0 + gr[FX + c if c < 2 else M0, 1] * t1
+                                    + gr[FX + c if c < 2 else M0, 2] * t2)
+                sg = 1.0 if dw >= 0.0 else -1.0
+            else:
+                sg = direction
+            t0, t1, t2 = sg * t0, sg * t1, sg * t2
         elif t0 * tprev[0] / s0 ** 2 + t1 * tprev[1] / s1 ** 2 + t2 * tprev[2] / s2 ** 2 < 0.0:
             t0, t1, t2 = -t0, -t1, -t2
         accepted = False
         while h > 1e-7:
             zp[0], zp[1], zp[2] = z[0] + h * t0, z[1] + h * t1, z[2] + h * t2
             pred0, pred1, pred2 = zp[0], zp[1], zp[2]
-            if _correct(zp, code, p0, p1, tgt, q, gr, J, 6, 1e-12):
+            if _correct(chart, zp, code, p0, p1, tgt, q, gr, J, 6, 1e-12):
                 dev = math.sqrt(((zp[0] - pred0) / s0) ** 2 + ((zp[1] - pred1) / s1) ** 2
                                 + ((zp[2] - pred2) / s2) ** 2)
                 if dev < 0.3 * h:
@@ -191,29 +361,40 @@ def _trace_one(z0, direction, code, p0, p1, tgt, max_mode, mext, lam_max, turn_m
         if not accepted:
             break
         tprev[0], tprev[1], tprev[2] = t0, t1, t2
-        _visit_segment(z, zp, lam_nodes, npsi, nt, mext, visited)
+        # q, gr: the corrector's last evaluation, at zp
+        wb[0], wb[1], wb[2] = q[FX], q[FY], q[M0]
+        if chart == CHART_WRENCH:
+            sens = _sensitivity(gr)
+        else:
+            wrench_eval(wb[0], wb[1], wb[2], qw, gw)
+            sens = _sensitivity(gw)
+        _mark(chart, z, zp, wa, wb, lam_nodes, npsi, nt, mext, visited, wvisited,
+              chart != CHART_WRENCH or sens > SENS_WRENCH)
         z[0], z[1], z[2] = zp[0], zp[1], zp[2]
         steps += 1
-        wrench_eval(z[0], z[1], z[2], q, gr)
         g, gx, gy, al, ax, ay, adm = condition_eval(code, p0, p1, q[X], q[Y])
         if not adm:
             break
-        where = _in_scope(z, q, max_mode, lam_max, turn_max)
+        where = _in_scope(chart, z, q, max_mode, lam_max, turn_max)
         if where != 0:
             if where == 1:
                 limits[0] += 1
             break
         out[n_out, 0], out[n_out, 1], out[n_out, 2] = z[0], z[1], z[2]
         n_out += 1
-        _visit(z, lam_nodes, npsi, nt, mext, visited)
         if steps > 8:  # closed loop: back at the start
             d = math.sqrt(((z[0] - z0[0]) / s0) ** 2 + ((z[1] - z0[1]) / s1) ** 2 + ((z[2] - z0[2]) / s2) ** 2)
             if d < 1.5 * h:
                 out[n_out, 0], out[n_out, 1], out[n_out, 2] = z0[0], z0[1], z0[2]
                 n_out += 1
                 break
+        nxt = _rechart(chart, z, q, sens, znext)
+        if nxt != chart:
+            for c in range(3):
+                ref[c] = wb[c] - wa[c]
+            return n_out, nxt
         h = min(h * 1.5, 0.05)
-    return n_out
+    return n_out, -1
 
 
 @njit
@@ -262,89 +443,125 @@ def _seeds(x, y, th, valid, code, p0, p1, tgt, pad) -> np.ndarray:
 
 
 @njit
-def _trace_all(Z, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, lam_nodes, npsi, nt, visited, cells,
-               out, starts, limits) -> int:
-    """Project every seed ``Z[r]`` (in cell ``cells[r]``) onto the curve and trace from it unless
-    an earlier trace passed through its cell; polylines are stored consecutively in ``out``
-    with their start offsets in ``starts``; returns the number of polylines."""
+def _trace_all(Z, charts, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, lam_nodes, npsi, nt, visited,
+               wvisited, out, starts, line_chart, limits) -> int:
+    """Project every seed ``Z[r]`` (chart ``charts[r]``) onto the curve and trace from it both
+    ways unless an earlier trace passed through its cell (of the wrench atlas; for a taut rod, of
+    the traced-window record ``wvisited``); a
+    trace switches charts where the rod becomes taut or slack again (:func:`_rechart`), each
+    piece its own polyline.  Polylines are stored consecutively in ``out`` with their start
+    offsets in ``starts`` and their charts in ``line_chart``; returns their number."""
     q = np.empty(NQ)
     gr = np.empty((NQ, 3))
     J = np.empty((2, 3))
+    qw = np.empty(NQ)
+    gw = np.empty((NQ, 3))
+    w = np.empty(3)
+    wz = np.empty(3)
+    ref = np.zeros(3)
+    znext = np.empty(3)
     n_out = 0
     n_lines = 0
-    back = np.empty((MAX_POINTS, 3))
     for r in range(Z.shape[0]):
-        if visited[cells[r, 0], cells[r, 1], cells[r, 2]]:
-            continue
+        chart0 = charts[r]
         z = Z[r].copy()
-        if not _correct(z, code, p0, p1, tgt, q, gr, J, 30, 1e-12):
+        if not _correct(chart0, z, code, p0, p1, tgt, q, gr, J, 30, 1e-12):
             continue
-        wrench_eval(z[0], z[1], z[2], q, gr)
-        if _in_scope(z, q, max_mode, lam_max, turn_max) != 0:
+        if _in_scope(chart0, z, q, max_mode, lam_max, turn_max) != 0:
             continue
-        i, j, k = _cell(z, lam_nodes, npsi, nt, mext)
-        if i >= 0 and visited[i, j, k]:
+        w[0], w[1], w[2] = q[FX], q[FY], q[M0]
+        # a taut rod is looked up in the traced-window record (the wrench atlas' cells cannot
+        # tell such rods apart), any other in the wrench atlas' cells
+        wrench_eval(w[0], w[1], w[2], qw, gw)
+        taut = _sensitivity(gw) > SENS_WINDOW
+        if taut:
+            if chart0 == CHART_WRENCH:
+                rot, wz[0], wz[1], wz[2] = window_of(w[0], w[1], w[2])
+                wch = CHART_ROT if rot else CHART_LIB
+            else:
+                wz[:] = z
+                wch = chart0
+            key = _wkey(wch, wz)
+            if _near_traced_window(wch, wz, wvisited):
+                continue
+        elif _near_traced(w, lam_nodes, npsi, nt, mext, visited):
             continue
-        if n_out + 2 * MAX_POINTS // 4 > out.shape[0]:
-            break
-        nb = _trace_one(z, -1.0, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, back, 0, visited, lam_nodes,
-                        npsi, nt, limits)
-        starts[n_lines] = n_out
-        for a in range(nb - 1, -1, -1):
-            out[n_out] = back[a]
-            n_out += 1
-        out[n_out] = z
-        n_out += 1
-        lim = min(out.shape[0], n_out + MAX_POINTS // 2)
-        n_out = _trace_one(z, 1.0, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, out[:lim], n_out, visited,
-                           lam_nodes, npsi, nt, limits)
-        n_lines += 1
-        _visit(z, lam_nodes, npsi, nt, mext, visited)
+        for direction in (-1.0, 1.0):
+            chart = chart0
+            zc = z.copy()
+            ref[:] = 0.0
+            for _ in range(MAX_SWITCHES):
+                if n_out + MAX_POINTS > out.shape[0] or n_lines + 2 > line_chart.shape[0]:
+                    break
+                starts[n_lines] = n_out
+                line_chart[n_lines] = chart
+                n_out, nxt = _trace_one(chart, zc, direction, ref, code, p0, p1, tgt, max_mode, mext, lam_max,
+                                        turn_max, out[:n_out + MAX_POINTS // 2], n_out, visited, wvisited, lam_nodes,
+                                        npsi, nt, limits, znext)
+                n_lines += 1
+                if nxt < 0:
+                    break
+                chart = nxt
+                zc = znext.copy()
+        if taut:
+            wvisited[key] = True
+        else:
+            _visit(w, lam_nodes, npsi, nt, mext, visited)
     starts[n_lines] = n_out
     return n_lines
 
 
 @lru_cache(maxsize=2)
-def _elliptic_grids(max_mode: int, max_winding: int) -> tuple[NDArray[np.float64], ...]:
-    """Features of the libration and rotation grids of :mod:`flexkin.rod.free_atlas`."""
-    from ..rod.free_atlas import FEATURES, fill_libration, fill_rotation, libration_grid, rotation_grid
+def _elliptic_grids(max_mode: int, max_winding: int) -> tuple[tuple[NDArray[np.float64], ...], ...]:
+    """Node coordinates and features of the libration and rotation grids of
+    :mod:`flexkin.rod.free_atlas`: per grid ``(a, b, c, F)``."""
+    from ..rod.free_atlas import (
+        FEATURES,
+        fill_libration,
+        fill_rotation,
+        libration_grid,
+        rotation_grid,
+    )
 
     out = []
     for grid, fill, arg in ((libration_grid, fill_libration, max_mode), (rotation_grid, fill_rotation, max_winding)):
         a, b, c = grid(arg)
         F = np.empty((len(a), len(b), len(c), FEATURES))
         fill(a, b, c, F)
-        out.append(F)
+        out.append((a, b, c, F))
     return tuple(out)
 
 
-def _elliptic_seeds(max_mode: int, max_winding: int, code: int, p0: float, p1: float, tgt: float, atlas
+def _elliptic_seeds(max_mode: int, code: int, p0: float, p1: float, tgt: float, max_winding: int
                     ) -> tuple[NDArray, NDArray]:
     """Seeds near the separatrix, which the wrench atlas cannot resolve (its tip depends on the
-    wrench with a condition number like ``1/k'^2``): cells of the elliptic grids bracketing both
-    conditions, as wrench-chart points and their wrench-atlas cells."""
-    Z, C = [], []
-    mext = moment_extra(max_winding)
-    for F in _elliptic_grids(max_mode, max_winding):
-        valid = (F[..., 9] <= lambda_max(max_mode)) & (F[..., 10] <= max_mode) & np.all(np.isfinite(F), axis=-1)
+    wrench with a condition number like ``exp(lambda L)``): nodes of the cells of the elliptic
+    grids bracketing both conditions, as elastica windows (coordinates and chart)."""
+    from ..rod.free_atlas import node_windows
+
+    Z, H = [], []
+    for lib, (a, b, c, F) in zip((True, False), _elliptic_grids(max_mode, max_winding)):
+        valid = (F[..., 10] <= max_mode) & np.all(np.isfinite(F), axis=-1)
         cells = _seeds(F[..., 0], F[..., 1], F[..., 4], valid, code, p0, p1, tgt, 0.25)
-        for i, j, k in cells:
-            z = np.ascontiguousarray(F[i, j, k, 6:9])
-            ci = _cell(z, atlas.lam, len(atlas.psi), len(atlas.t), mext)
-            if ci[0] >= 0:
-                Z.append(z)
-                C.append(ci)
-    return np.array(Z, float).reshape(-1, 3), np.array(C, np.int64).reshape(-1, 3)
+        if not len(cells):
+            continue
+        w = np.empty((len(cells), 3))
+        node_windows(lib, a[cells[:, 0]], b[cells[:, 1]], c[cells[:, 2]], w)
+        Z.append(w)
+        H.append(np.full(len(w), CHART_LIB if lib else CHART_ROT, np.int64))
+    if not Z:
+        return np.zeros((0, 3)), np.zeros(0, np.int64)
+    return np.concatenate(Z), np.concatenate(H)
 
 
 def clamped_leg_curve(mech, i: int, B: NDArray[np.float64], theta: float, max_mode: int,
                       max_winding: int = 1, force_tol: float = 0.05) -> LegCurve:
     """Curves of clamped leg ``i`` (0-based) with its attach point at ``B`` (world) and the
     platform at orientation ``theta``: one branch dict per polyline (see
-    :class:`~flexkin.solve.curves.LegCurve`; ``z`` holds the wrench-chart coordinates), rods of
-    d-mode ``<= max_mode`` and winding ``|w| <= max_winding`` (with a margin of turning).
-    ``limits`` counts the polylines stopped at the grid's force limit
-    (:func:`~flexkin.rod.wrench_atlas.lambda_max`)."""
+    :class:`~flexkin.solve.curves.LegCurve`; ``z`` holds the coordinates in the chart ``chart``:
+    the wrench chart, or the elastica window of a taut rod), rods of d-mode ``<= max_mode`` and
+    winding ``|w| <= max_winding`` (with a margin of turning).  ``limits`` counts the polylines
+    stopped at the search's force limit :data:`LAMBDA_LIMIT`."""
     leg = mech.legs[i]
     atlas = get_wrench_atlas(max_mode, max_winding)
     mext = moment_extra(max_winding)
@@ -353,20 +570,27 @@ def clamped_leg_curve(mech, i: int, B: NDArray[np.float64], theta: float, max_mo
     cells = _seeds(atlas.x, atlas.y, atlas.th, atlas.valid, int(code), float(par[0]), float(par[1]), tgt, 0.25)
     Z = np.ascontiguousarray(atlas.wrench(cells[:, 0] + 0.5, cells[:, 1] + 0.5, cells[:, 2] + 0.5)) \
         if len(cells) else np.zeros((0, 3))
-    Ze, Ce = _elliptic_seeds(max_mode, max_winding, int(code), float(par[0]), float(par[1]), tgt, atlas)
-    Z, cells = np.ascontiguousarray(np.concatenate([Z, Ze])), np.ascontiguousarray(np.concatenate([cells, Ce]))
-    visited = np.zeros((len(atlas.lam) - 1, len(atlas.psi), len(atlas.t) - 1), bool)
+    Ze, He = _elliptic_seeds(max_mode, int(code), float(par[0]), float(par[1]), tgt, max_winding)
+    Z = np.ascontiguousarray(np.concatenate([Z, Ze]))
+    charts = np.concatenate([np.full(len(Z) - len(Ze), CHART_WRENCH, np.int64), He])
+    wvisited = Dict.empty(key_type=types.int64, value_type=types.boolean)
+    # the traced-curve record: cells of a polar grid of base wrenches like the atlas', up to the
+    # search's force limit
+    lam_v = LAMBDA_LIMIT * np.linspace(0.0, 1.0, N_VISIT[0]) ** 1.5
+    visited = np.zeros((N_VISIT[0] - 1, N_VISIT[1], N_VISIT[2] - 1), bool)
     out = np.empty((40 * MAX_POINTS, 3))
-    starts = np.zeros(len(Z) + 2, np.int64)
+    n_max = 2 * MAX_SWITCHES * len(Z) + 2
+    starts = np.zeros(n_max + 1, np.int64)
+    line_chart = np.zeros(n_max, np.int64)
     limits = np.zeros(1, np.int64)
-    n_lines = _trace_all(Z, int(code), float(par[0]), float(par[1]), tgt, max_mode, mext, lambda_max(max_mode),
-                         turning_max(max_winding) + TURN_MARGIN, atlas.lam, len(atlas.psi), len(atlas.t), visited,
-                         cells, out, starts, limits)
+    n_lines = _trace_all(Z, charts, int(code), float(par[0]), float(par[1]), tgt, max_mode, mext, LAMBDA_LIMIT,
+                         turning_max(max_winding) + TURN_MARGIN, lam_v, N_VISIT[1], N_VISIT[2], visited,
+                         wvisited, out, starts, line_chart, limits)
     branches = []
     for a in range(n_lines):
         zl = out[starts[a]:starts[a + 1]]
         if len(zl) >= 2:
-            branches.append(_thin(_branch_data(leg, B, zl), leg.rod.EI, force_tol))
+            branches.append(_thin(_branch_data(leg, B, zl, int(line_chart[a])), leg.rod.EI, force_tol))
     return LegCurve(i, leg.actuation, tuple(branches), limits=int(limits[0]))
 
 
@@ -396,16 +620,15 @@ def _thin(br: dict[str, NDArray], EI: float, tol: float) -> dict[str, NDArray]:
     return {k: v[keep] for k, v in br.items()}
 
 
-def _branch_data(leg, B: NDArray, zl: NDArray) -> dict[str, NDArray]:
-    from ..rod.kernels import CHART_WRENCH, eval_rods
-
+def _branch_data(leg, B: NDArray, zl: NDArray, chart: int) -> dict[str, NDArray]:
     q = np.empty((len(zl), NQ))
     g = np.empty((len(zl), NQ, 3))
-    eval_rods(np.full(len(zl), CHART_WRENCH, dtype=np.int64), np.ascontiguousarray(zl), q, g)
+    ch = np.full(len(zl), chart, dtype=np.int64)
+    eval_rods(ch, np.ascontiguousarray(zl), q, g)
     u, alpha, L = leg.actuator.from_tip(B, q[:, X], q[:, Y])
     u, alpha, L = (np.broadcast_to(np.asarray(v, dtype=float), (len(zl),)) for v in (u, alpha, L))
     EI = leg.rod.EI
     force = rotate(q[:, [FX, FY]], alpha) * (EI / L**2)[:, None]
-    modes = np.array([wrench_mode(z[0], z[1], z[2], 1e-9)[0] for z in zl])
-    return {"z": zl.copy(), "input": np.array(u), "force": force, "tip_moment": EI / L * q[:, ML],
+    modes = np.array([clamped_mode(chart, z, 1e-9)[0] for z in zl])
+    return {"z": zl.copy(), "chart": ch, "input": np.array(u), "force": force, "tip_moment": EI / L * q[:, ML],
             "length": np.array(L), "mode": modes, "energy": EI / L * q[:, EN]}

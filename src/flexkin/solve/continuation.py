@@ -57,7 +57,7 @@ def _physical(c0, c1, EI, rod_col, L_ref, F_ref, x, chart, su, out, q, g) -> Non
         al = c0[i, 2] + c1[i, 2] * u
         L = c0[i, 3] + c1[i, 3] * u
         col = rod_col[i]
-        dim = 3 if chart[i] == CHART_WRENCH else 2
+        dim = 3 if chart[i] >= CHART_WRENCH else 2
         eval_rod(chart[i], x[col:col + dim], q[i], g[i])
         sf = EI[i] / (L * L) / F_ref
         ca, sa = math.cos(al), math.sin(al)

@@ -64,7 +64,7 @@ def _project_rods(x: np.ndarray, chart: np.ndarray, rod_col: np.ndarray) -> None
     for i in range(3):
         c = chart[i]
         if c != CHART_WRENCH:
-            project(c, x[rod_col[i]:rod_col[i] + 2])
+            project(c, x[rod_col[i]:rod_col[i] + (3 if c > CHART_WRENCH else 2)])
 
 
 @njit(cache=True)

@@ -32,11 +32,10 @@ from ..io.progress import Progress, substage
 from ..results import Solution
 from ..rod.atlas import in_scope
 from ..rod.closed_form import mode_of, pinned_chart
-from ..rod.kernels import CHART_SEAM, CHART_WRENCH, PHI, TH
+from ..rod.kernels import CHART_SEAM, CHART_WRENCH, PHI, TH, clamped_mode
 from ..rod.seam_atlas import seam_in_scope
 from ..rod.slots import X as X_, Y as Y_
-from ..rod.wrench import wrench_mode
-from ..rod.wrench_atlas import in_wrench_scope, lambda_max
+from ..rod.wrench_atlas import in_wrench_scope
 from ..rod.state import RodState
 from ..system import System
 from .corrector import RESIDUAL_TOL
@@ -51,9 +50,9 @@ SCOPE_MESSAGE = ("equilibria with a rod near straight under tension beyond the n
                  "solution list is incomplete there")
 
 
-def force_limit_message(max_mode: int) -> str:
-    """Why a result is incomplete when a clamped leg's search reached its grid's force limit."""
-    lam = lambda_max(max_mode)
+def force_limit_message(lam: float) -> str:
+    """Why a result is incomplete when a clamped leg's search reached its force limit
+    ``lambda L = lam``."""
     return (f"the search for clamped rods reached its numerical force limit (lambda L = {lam:g}, a tip force of "
             f"{lam * lam:g} EI/L^2) and did not look beyond it: equilibria with a more heavily loaded clamped rod "
             "may be missing")
@@ -90,7 +89,7 @@ def rod_modes(system: System, X: NDArray, charts: NDArray, with_boundary: bool =
     boundary = np.zeros((n, 3), bool)
     for i in range(3):
         z = X[:, system.layout.rod[i]]
-        pinned = charts[:, i] != CHART_WRENCH
+        pinned = charts[:, i] < CHART_WRENCH
         if np.any(pinned):
             v, ph = pinned_chart(z[pinned], charts[pinned, i])
             # phis at a base inflection is -pi/2 - j pi: snap to it within the resolution, so
@@ -100,7 +99,8 @@ def rod_modes(system: System, X: NDArray, charts: NDArray, with_boundary: bool =
             modes[pinned, i] = np.where(on, j + 1, mode_of(ph))
             boundary[pinned, i] = on
         for k in np.flatnonzero(~pinned):
-            modes[k, i], boundary[k, i] = wrench_mode(z[k, 0], z[k, 1], z[k, 2], BOUNDARY_RTOL)
+            modes[k, i], boundary[k, i] = clamped_mode(int(charts[k, i]), np.ascontiguousarray(z[k], dtype=float),
+                                                        BOUNDARY_RTOL)
     return (modes, boundary) if with_boundary else modes
 
 
@@ -118,7 +118,7 @@ def _in_scope(system: System, X: NDArray, charts: NDArray, modes: NDArray, max_m
     for i in range(3):
         z = X[:, system.layout.rod[i]]
         seam = charts[:, i] == CHART_SEAM
-        clamped = charts[:, i] == CHART_WRENCH
+        clamped = charts[:, i] >= CHART_WRENCH
         unified = ~seam & ~clamped
         if np.any(unified):
             ok_u[unified] &= in_scope(z[unified, :1])

@@ -23,6 +23,7 @@ from ..core.validation import as_load, as_triple, check_max_mode, check_max_wind
 from ..io.progress import Progress, substage
 from ..results import FKDiagnostics, KinematicsResult
 from ..system import System
+from ..rod.wrench_atlas import lambda_max
 from .finish import SCOPE_MESSAGE, force_limit_message, refine
 from .fk_lattice import lattice_starts
 from .fk_search import fk_starts
@@ -121,7 +122,7 @@ def fk(mech, inputs: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2
         msg = SCOPE_MESSAGE
     if diag.get("force_limit"):
         complete = False
-        msg = force_limit_message(max_mode)
+        msg = force_limit_message(lambda_max(max_mode))
     if not diag["search_complete"] or dl.hit:
         why = dl.message() if dl.hit else f"search budget exhausted ({nodes} node triples examined)"
         msg = f"{why}: the global search did not finish, the solution list may be incomplete" + \

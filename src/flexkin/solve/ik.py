@@ -24,6 +24,7 @@ from ..core.validation import as_load, as_triple, check_max_mode, check_max_wind
 from ..io.progress import Progress, substage
 from ..results import IKDiagnostics, KinematicsResult
 from ..system import System
+from .clamped_curves import LAMBDA_LIMIT
 from .curves import leg_curves
 from .equilibrium import equilibrium_triples
 from .finish import SCOPE_MESSAGE, force_limit_message, refine
@@ -127,7 +128,7 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
             (dl.message("the search stopped before any candidate was found") if dl.hit else
              "search stopped early (node budget) before any candidate was found")
         if complete and diag["force_limit"]:
-            complete, msg = False, force_limit_message(max_mode)
+            complete, msg = False, force_limit_message(LAMBDA_LIMIT)
         return KinematicsResult((), complete, msg, time.perf_counter() - t0, IKDiagnostics(**diag), "ik", mech,
                                 tuple(float(v) for v in pose), tuple(float(v) for v in w), max_mode, curves,
                                 max_winding=max_winding)
@@ -155,7 +156,7 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
         msg = SCOPE_MESSAGE
     if diag["force_limit"]:
         complete = False
-        msg = force_limit_message(max_mode)
+        msg = force_limit_message(LAMBDA_LIMIT)
     if not diag["search_complete"] or dl.hit:
         msg = (dl.message("the solution list may be incomplete") if dl.hit else
                "search stopped early (node budget): the solution list may be incomplete")

@@ -151,7 +151,7 @@ def cell_peak_curvature(system: System, mech: Any, X: NDArray, charts: NDArray) 
     other = np.zeros(n, bool)
     for i in range(3):
         ch = charts[:, i]
-        pinned = (ch != CHART_WRENCH) & (mech.legs[i].joint != "clamped")
+        pinned = (ch < CHART_WRENCH) & (mech.legs[i].joint != "clamped")
         other |= ~pinned
         c = lay.rod[i].start
         v, ph = pinned_chart(X[:, c:c + 2], ch)
@@ -163,7 +163,7 @@ def cell_peak_curvature(system: System, mech: Any, X: NDArray, charts: NDArray) 
         rods = system.rods(X[rows], charts[rows])
         for r, trio in zip(rows, rods):
             for i in range(3):
-                if charts[r, i] == CHART_WRENCH or mech.legs[i].joint == "clamped":
+                if charts[r, i] >= CHART_WRENCH or mech.legs[i].joint == "clamped":
                     out[r, i] = rod_max_curvature(trio[i])
     return out
 

@@ -1,0 +1,233 @@
+"""Issue 25's two miss classes of clamped legs, against the independent oracle (test-only data).
+
+* **Heavy load**: the unit 3-PF with clamped rods (``examples/unit_3pff.toml``) at a generic pose
+  under a downward platform load of 400 EI/L^2.  The independent multi-start oracle
+  (``tests/ik_oracle.py`` through ``leg_curves.solve_clamped``; it never calls flexkin's solvers)
+  searches rods with tip forces up to 1000 EI/L^2 (``R_range``; the canonical chart of clamped
+  rods that seeds its leg curves is built up to ``rho_max = sqrt(1000)`` and the curves are traced
+  up to 1.5 x 1000 EI/L^2).  In SPEC §2's scope (d-mode <= 2 counted as interior inflections of a
+  clamped rod, ``|winding| <= 1``) many of its equilibria carry a rod above 256 EI/L^2, the old
+  search's force limit.  flexkin must list every one of them, and one such equilibrium must be
+  verified by re-integration.
+* **Near-fold pair**: two equilibria of a mechanism with clamped legs whose inputs differ by less
+  than 1e-3 (relative), one stable and one unstable (stability by the discretised-energy oracle
+  ``tests/stability_oracle.py``).  Both must be listed, with different stability.
+
+The case parameters are constants below; ``tests/find_clamped_cases.py`` regenerates them (how
+they were found is said at each constant).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import flexkin
+
+sys.path.insert(0, os.path.dirname(__file__))
+import ik_oracle as O  # noqa: E402
+from test_clamped_mechanism import _in_flexkin_scope, _key, record  # noqa: E402
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+# ======================================================================================
+# the heavy-load case
+# ======================================================================================
+#: unit 3-PF with clamped rods (L = 1 m, EI = 1 N m^2: forces in EI/L^2)
+HEAVY_MECHANISM = "unit_3pff.toml"
+#: a generic pose (x, y m; theta rad) and a downward load (F_x, F_y N, M_z N m) of 400 EI/L^2: found
+#: by ``find_clamped_cases.py heavy``, trying F_y = -250 and -400 at this pose; at -400 every one of the
+#: oracle's 88 equilibria lies in SPEC §2's scope, most with a rod above 256 EI/L^2, all below 600
+HEAVY_POSE = (0.03, -0.02, math.radians(10.0))
+HEAVY_LOAD = (0.0, -400.0, 0.0)
+#: the oracle's configuration: d-mode <= 3 in its count (1 + interior sign changes), turning <= 3 pi
+#: (|winding| <= 1 and a margin), tip forces 0.05 .. 1000 EI/L^2; about 55 s on the 2-core machine
+HEAVY_ORACLE = dict(max_mode=3, max_turn=3 * math.pi, n_starts=300, R_range=(0.05, 1000.0), seed=1)
+#: the old search's force limit (lambda L <= 16 at max_mode 2) and the oracle's
+OLD_LIMIT = 256.0
+ORACLE_LIMIT = 1000.0
+
+
+@functools.cache
+def heavy_mech():
+    return flexkin.load_mechanism(EXAMPLES / HEAVY_MECHANISM)
+
+
+@functools.cache
+def heavy_oracle():
+    """The oracle's equilibria in SPEC §2's scope with every rod at most 1000 EI/L^2."""
+    sols = O.oracle_ik(heavy_mech(), HEAVY_POSE, load=HEAVY_LOAD, **HEAVY_ORACLE)
+    return tuple(s for s in sols if _in_flexkin_scope(s) and max(r.R_dimless for r in s.rods) <= ORACLE_LIMIT)
+
+
+@functools.cache
+def heavy_flexkin():
+    return flexkin.ik(heavy_mech(), HEAVY_POSE, load=HEAVY_LOAD)
+
+
+def _same(a, b, g) -> bool:
+    """Same equilibrium: scaled inputs, tip forces and base moments (``_key``) within 1e-6, relative
+    to the size of each entry beyond 1 (taut rods carry hundreds of EI/L^2)."""
+    ka, kb = _key(a, g), _key(b, g)
+    return bool(np.all(np.abs(ka - kb) <= 1e-6 * (1.0 + np.abs(kb))))
+
+
+def _listed(s, res, g) -> bool:
+    return any(_same(f, s, g) for f in res.solutions)
+
+
+def test_heavy_case_needs_forces_beyond_the_old_limit():
+    """The case is what it claims: oracle equilibria in scope, some with a rod above 256 EI/L^2."""
+    sols = heavy_oracle()
+    heavy = [s for s in sols if max(r.R_dimless for r in s.rods) > OLD_LIMIT]
+    record("heavy load: oracle", f"{len(sols)} in scope, {len(heavy)} with a rod above {OLD_LIMIT:g} EI/L^2, "
+           f"max R L^2/EI {max(max(r.R_dimless for r in s.rods) for s in sols):.1f}")
+    assert len(sols) >= 20 and len(heavy) >= 10
+
+
+def test_heavy_load_complete_against_the_oracle():
+    """Every oracle equilibrium in scope (taut rods next to the separatrix included: under a heavy
+    load they are the rule, and SPEC §2 has no force cap) is listed by flexkin."""
+    g = O.Geom.of(heavy_mech())
+    res = heavy_flexkin()
+    sols = heavy_oracle()
+    missed = [s for s in sols if not _listed(s, res, g)]
+    heavy_missed = [s for s in missed if max(r.R_dimless for r in s.rods) > OLD_LIMIT]
+    record("heavy load: completeness", f"flexkin {len(res.solutions)} in {res.elapsed:.1f} s (complete "
+           f"{res.complete}), oracle {len(sols)}, missed {len(missed)} ({len(heavy_missed)} above {OLD_LIMIT:g})")
+    assert not missed, [(s.mode_label, np.round(s.inputs, 6).tolist(),
+                         round(max(r.R_dimless for r in s.rods), 1)) for s in missed]
+
+
+#: a second oracle configuration for the slow run: forces up to 400 EI/L^2 (its leg curves are traced to
+#: 600): under this heavy load one multi-start run finds a different subset of the equilibria (at this
+#: case: 88 with the 1000 configuration, 116 with a 300 one, at least 123 together), so the slow run
+#: compares flexkin with the union
+HEAVY_ORACLE_SECOND = dict(HEAVY_ORACLE, R_range=(0.05, 400.0), seed=2)
+
+
+@pytest.mark.slow
+def test_heavy_load_complete_against_two_oracle_runs():
+    """The union of two oracle configurations: every equilibrium in scope is listed."""
+    m = heavy_mech()
+    g = O.Geom.of(m)
+    res = heavy_flexkin()
+    more = [s for s in O.oracle_ik(m, HEAVY_POSE, load=HEAVY_LOAD, **HEAVY_ORACLE_SECOND) if _in_flexkin_scope(s)]
+    sols = list(heavy_oracle()) + [s for s in more if not any(_same(s, t, g) for t in heavy_oracle())]
+    missed = [s for s in sols if not _listed(s, res, g)]
+    record("heavy load: two oracle runs", f"union {len(sols)} ({len(sols) - len(heavy_oracle())} only in the "
+           f"second), flexkin {len(res.solutions)}, missed {len(missed)}")
+    assert not missed, len(missed)
+
+
+def test_heavy_rod_found_and_verified():
+    """At least one oracle equilibrium with a rod above 256 EI/L^2 is listed, and flexkin's copy
+    of it is verified: flexkin's own flag, and the oracle's re-integration of the reported rods
+    (tip at B_i, tip tangent, platform equilibrium, the reported tip moments; taut rods by the
+    two-sided midpoint check)."""
+    m = heavy_mech()
+    g = O.Geom.of(m)
+    res = heavy_flexkin()
+    found = [f for f in res.solutions
+             if max(math.hypot(*r.tip_force) * r.length**2 / r.EI for r in f.rods) > OLD_LIMIT
+             and any(_same(f, s, g) for s in heavy_oracle())]
+    record("heavy load: verified above the old limit", f"{len(found)} listed")
+    assert found, "no equilibrium with a rod above 256 EI/L^2 is listed"
+    for f, v in zip(found, O.verify_many(m, found, HEAVY_LOAD, HEAVY_POSE)):
+        assert f.verified is True
+        assert v["eq_force"] < 1e-9 and v["eq_moment"] < 1e-9, v
+        # the two-sided midpoint check (each rod integrated from its clamp and from its tip, with
+        # the reported tip force and tip moment, to its middle) is well conditioned however taut
+        # the rod; the one-sided shot from the clamp amplifies errors like exp(lambda L)
+        lam = max(math.sqrt(math.hypot(*r.tip_force) * r.length**2 / r.EI) for r in f.rods)
+        assert v["midpoint_mismatch"] < 1e-7, v
+        assert v["tip_moment_error"] < max(1e-6 * (1.0 + lam), 1e-12 * math.exp(lam)), v
+
+
+# ======================================================================================
+# the near-fold pair
+# ======================================================================================
+#: the mixed example (two clamped legs, one pinned) under its own load
+FOLD_MECHANISM = "mixed_clamped.toml"
+#: found by ``find_clamped_cases.py fold``: at (0.02, -0.05, 0.1 rad) the oracle's two closest
+#: equilibria (both 122 in its count, inputs 0.037 apart) lie on the two sides of a fold of the IK
+#: solution set; continued together along -x they merge at x = 0.0187869061 m (the continuation
+#: stalls); 0.23 um before that fold their inputs differ by 5.0e-4.  Forces <= 51 EI/L^2, the clamped
+#: leg 1 winds once (turning 3.47 rad), no rod near the separatrix.
+FOLD_POSE = (0.01878712584373703, -0.05, 0.1)
+FOLD_LOAD = (0.05, -0.1, 0.02)
+#: the pair: inputs (rad, m, m), tip forces (N), base moments (N m), as the oracle polished them
+FOLD_PAIR = (
+    dict(inputs=(-2.321804287081684, 0.755903384243313, 1.043544143482985),
+         forces=((21.65891852334944, 27.76702017736284), (27.025097504386387, -14.669574830941839),
+                 (-48.634016027735825, -13.197445346421006)),
+         moments=(11.87324813452027, -1.6175352556097042, 6.353304576119993)),
+    dict(inputs=(-2.321304151166154, 0.7561758637922561, 1.0435960313343182),
+         forces=((21.639770716515525, 27.753256900860677), (27.044760614797656, -14.665878872131705),
+                 (-48.63453133131318, -13.187378028728975)),
+         moments=(11.869531935875603, -1.626934708420563, 6.354792697679035)),
+)
+
+
+@functools.cache
+def fold_mech():
+    return flexkin.load_mechanism(EXAMPLES / FOLD_MECHANISM)
+
+
+@functools.cache
+def fold_pair():
+    """The pair re-solved by the oracle's own Newton (DOP853 residual) from the stored values, with
+    the oracle's stability verdicts."""
+    import stability_oracle as S
+
+    m = fold_mech()
+    sy = O._System(O.Geom.of(m), FOLD_POSE, np.asarray(FOLD_LOAD, float))
+    out = []
+    for c in FOLD_PAIR:
+        zp, rn = O._polish(sy, O.to_z(sy, c["forces"], c["moments"], c["inputs"])[None])
+        s = O._build_many(sy, zp, rn)[0]
+        out.append((s, S.solution_stability(m, s, FOLD_LOAD)))
+    return tuple(out)
+
+
+@functools.cache
+def fold_flexkin():
+    return flexkin.ik(fold_mech(), FOLD_POSE, load=FOLD_LOAD)
+
+
+def test_fold_pair_is_a_near_fold_pair():
+    """The stored pair is what it claims: two distinct equilibria of the oracle's equations (verified
+    by re-integration), in scope, inputs less than 1e-3 apart, stability resolved by the oracle."""
+    m = fold_mech()
+    g = O.Geom.of(m)
+    (a, sa), (b, sb) = fold_pair()
+    d = np.max(np.abs((a.inputs - b.inputs) / g.u_scale()))
+    record("near-fold pair", f"inputs {d:.2e} apart, stable {sa.stable}/{sb.stable} "
+           f"(min eig {sa.min_eig:.3f}/{sb.min_eig:.3f})")
+    assert 1e-5 < d < 1e-3
+    assert np.max(np.abs(a.forces - b.forces)) > 1e-3  # distinct states, not one solution twice
+    for s, st in ((a, sa), (b, sb)):
+        assert s.residual < 1e-9 and _in_flexkin_scope(s)
+        v = O.verify_solution(m, s, FOLD_LOAD, FOLD_POSE)
+        assert v["tip_error"] < 1e-10 and v["tip_angle_error"] < 1e-10 and v["eq_force"] < 1e-10, v
+        assert st.converged and abs(st.min_eig) > 1e-2
+
+
+def test_fold_pair_both_listed_with_the_oracles_stability():
+    """flexkin lists both members of the pair and gives each the oracle's stability verdict."""
+    g = O.Geom.of(fold_mech())
+    res = fold_flexkin()
+    got = []
+    for s, st in fold_pair():
+        match = [f for f in res.solutions if _same(f, s, g)]
+        got.append((len(match), [f.stable for f in match], st.stable))
+    record("near-fold pair: flexkin", f"{len(res.solutions)} solutions in {res.elapsed:.1f} s; pair listed "
+           f"{[n for n, _, _ in got]}")
+    assert all(n == 1 for n, _, _ in got), got
+    assert all(fs == [want] for _, fs, want in got), got
