@@ -117,3 +117,34 @@ def test_taut_windows_obey_the_rod_equations(chart, v, us, ue):
     assert clamped_peak(chart, w) == pytest.approx(np.max(np.abs(pf[:, 3])), rel=1e-6)
     # a taut rod is nearly straight along its force: the tip is within O(1/lambda) of full reach
     assert math.hypot(q[X], q[Y]) > 1.0 - 8.0 / lam
+
+
+def test_taut_windows_moves_only_taut_rods_and_keeps_them():
+    """``taut_windows`` (the refinement's re-charting) moves a wrench-chart rod to its window only
+    when its tip sensitivity to the base moment passes ``SENS_WINDOW``, and the window is the same
+    rod."""
+    from flexkin.rod.elastica import SENS_WINDOW, taut_windows, tip_sensitivity
+
+    rng = np.random.default_rng(4)
+    taut = []
+    for _ in range(100):  # librating windows across a top, in their base wrench
+        v, us = rng.uniform(4.0, 9.0), rng.uniform(-1.0, 1.0)
+        q, _ = evaluate(CHART_LIB, [v, us, us + rng.uniform(6.0, 14.0)])
+        taut.append([q[FX], q[FY], q[M0]])
+    Z = np.concatenate([random_wrenches(100, 3), np.array(taut)])
+    charts = np.full(len(Z), CHART_WRENCH, np.int64)
+    Z0 = Z.copy()
+    moved = taut_windows(charts, Z, CHART_WRENCH, CHART_LIB, CHART_ROT)
+    sens = np.array([tip_sensitivity(evaluate(CHART_WRENCH, z)[1]) for z in Z0])
+    assert moved == np.count_nonzero(charts != CHART_WRENCH) > 0
+    np.testing.assert_array_equal(charts != CHART_WRENCH, sens > SENS_WINDOW)
+    for c, z, z0 in zip(charts, Z, Z0):
+        if c == CHART_WRENCH:
+            np.testing.assert_array_equal(z, z0)
+            continue
+        q, _ = evaluate(c, z)
+        qw, gw = evaluate(CHART_WRENCH, z0)
+        # the wrench chart's own tip is only good to its sensitivity times the rounding of m0
+        tol = 1e-12 * (1.0 + tip_sensitivity(gw)) * (1.0 + abs(z0[2]))
+        assert abs(q[X] - qw[X]) < tol and abs(q[Y] - qw[Y]) < tol and abs(q[TH] - qw[TH]) < tol
+        assert q[FX] == pytest.approx(z0[0], rel=1e-12, abs=1e-12) and q[M0] == pytest.approx(z0[2], rel=1e-9, abs=1e-9)

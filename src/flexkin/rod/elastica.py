@@ -63,11 +63,18 @@ from .orbit import (
     orbit_constants,
     orbit_point,
 )
-from .slots import EN, FX, FY, M0, ML, PHI, TH, X, Y
+from .slots import EN, FX, FY, M0, ML, NQ, PHI, TH, X, Y
+from .wrench import wrench_eval
 
 __all__ = ["lib_eval", "rot_eval", "window_tip", "window_values", "window_profile", "window_mode", "window_peak", "reduce_window",
-           "window_of", "V_CAP"]
+           "window_of", "taut_windows", "tip_sensitivity", "SENS_WINDOW", "SENS_WRENCH", "V_CAP"]
 
+#: tip sensitivity to the base moment, ``|d(x, y, theta)/d m0|`` of the unit rod, above which a
+#: clamped rod is computed in its elastica window (a taut rod: the sensitivity grows like
+#: ``exp(lambda L)`` along an orbit near the saddle, and the wrench chart loses the tip's digits),
+#: and below which a trace comes back to the wrench chart (hysteresis)
+SENS_WINDOW = 1e3
+SENS_WRENCH = 1e2
 #: cap on |v| of the elliptic charts (k' = sech v ~ 2 exp(-|v|) stays a normal number)
 V_CAP = 350.0
 
@@ -427,3 +434,32 @@ def window_of(a: float, b: float, m0: float) -> tuple[bool, float, float, float]
     us = fedb(phis, m, mp, K, Ec, Dc, Bc)[0]
     ell = (lam / k if m0 >= 0.0 else -lam / k) if rot else lam
     return rot, v, us, us + ell
+
+
+@njit(cache=True)
+def tip_sensitivity(grad: np.ndarray) -> float:
+    """``|d(x, y, theta)/d m0|`` of a unit rod from its wrench-chart gradient (NQ, 3)."""
+    return abs(grad[X, 2]) + abs(grad[Y, 2]) + abs(grad[TH, 2])
+
+
+@njit(cache=True)
+def taut_windows(charts: np.ndarray, Z: np.ndarray, wrench: int, lib: int, rot: int) -> int:
+    """Move the rods in the wrench chart (code ``wrench``) whose tip sensitivity passes
+    :data:`SENS_WINDOW` to their elastica windows (codes ``lib``, ``rot``), in place: ``charts``
+    (n,), ``Z`` (n, 3).  Returns how many moved."""
+    q = np.empty(NQ)
+    g = np.empty((NQ, 3))
+    moved = 0
+    for r in range(Z.shape[0]):
+        if charts[r] != wrench:
+            continue
+        wrench_eval(Z[r, 0], Z[r, 1], Z[r, 2], q, g)
+        if not tip_sensitivity(g) > SENS_WINDOW:
+            continue
+        is_rot, v, us, ue = window_of(Z[r, 0], Z[r, 1], Z[r, 2])
+        if not v == v:
+            continue
+        charts[r] = rot if is_rot else lib
+        Z[r, 0], Z[r, 1], Z[r, 2] = v, us, ue
+        moved += 1
+    return moved

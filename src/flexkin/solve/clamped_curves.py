@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from ..core.geometry2d import rotate
 from ..core.geometry2d_kernels import wrap_angle
 from ..core.jit import njit
-from ..rod.elastica import reduce_window, window_of
+from ..rod.elastica import SENS_WINDOW, SENS_WRENCH, reduce_window, tip_sensitivity, window_of
 from ..rod.elliptic import complete
 from ..rod.kernels import clamped_mode, eval_rod, eval_rods, project
 from ..rod.orbit import modulus
@@ -66,11 +66,6 @@ MAX_POINTS = 4000
 LAMBDA_LIMIT = 64.0
 
 
-#: tip sensitivity to the base moment, ``|d(x, y, theta)/d m0|`` of the unit rod, above which a
-#: trace leaves the wrench chart for the rod's elastica window (a taut rod: the sensitivity grows
-#: like ``exp(lambda L)`` along an orbit near the saddle), and below which it comes back
-SENS_WINDOW = 1e3
-SENS_WRENCH = 1e2
 #: chart switches traced at most from one seed in one direction
 MAX_SWITCHES = 12
 #: the traced-curve record's grid of base wrenches: lambda nodes, directions, base moments
@@ -126,12 +121,6 @@ def _metric(chart, z, q, mext) -> tuple:
     sf = 1.0 + R
     sm = 1.0 + 2.0 * lam + mext
     return sf, sf, sm
-
-
-@njit
-def _sensitivity(gr) -> float:
-    """``|d(x, y, theta)/d m0|`` from a wrench-chart gradient."""
-    return abs(gr[X, 2]) + abs(gr[Y, 2]) + abs(gr[TH, 2])
 
 
 @njit
@@ -364,10 +353,10 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
         # q, gr: the corrector's last evaluation, at zp
         wb[0], wb[1], wb[2] = q[FX], q[FY], q[M0]
         if chart == CHART_WRENCH:
-            sens = _sensitivity(gr)
+            sens = tip_sensitivity(gr)
         else:
             wrench_eval(wb[0], wb[1], wb[2], qw, gw)
-            sens = _sensitivity(gw)
+            sens = tip_sensitivity(gw)
         _mark(chart, z, zp, wa, wb, lam_nodes, npsi, nt, mext, visited, wvisited,
               chart != CHART_WRENCH or sens > SENS_WRENCH)
         z[0], z[1], z[2] = zp[0], zp[1], zp[2]
@@ -473,7 +462,7 @@ def _trace_all(Z, charts, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, 
         # a taut rod is looked up in the traced-window record (the wrench atlas' cells cannot
         # tell such rods apart), any other in the wrench atlas' cells
         wrench_eval(w[0], w[1], w[2], qw, gw)
-        taut = _sensitivity(gw) > SENS_WINDOW
+        taut = tip_sensitivity(gw) > SENS_WINDOW
         if taut:
             if chart0 == CHART_WRENCH:
                 rot, wz[0], wz[1], wz[2] = window_of(w[0], w[1], w[2])

@@ -32,7 +32,8 @@ from ..io.progress import Progress, substage
 from ..results import Solution
 from ..rod.atlas import in_scope
 from ..rod.closed_form import mode_of, pinned_chart
-from ..rod.kernels import CHART_SEAM, CHART_WRENCH, PHI, TH, clamped_mode
+from ..rod.elastica import taut_windows
+from ..rod.kernels import CHART_LIB, CHART_ROT, CHART_SEAM, CHART_WRENCH, PHI, TH, clamped_mode
 from ..rod.seam_atlas import seam_in_scope
 from ..rod.slots import X as X_, Y as Y_
 from ..rod.wrench_atlas import in_wrench_scope
@@ -345,6 +346,24 @@ def _with_id(s: Solution, k: int) -> Solution:
     return s
 
 
+def _taut_in_windows(system: System, X: NDArray, charts: NDArray) -> tuple[NDArray, NDArray]:
+    """Candidates with every taut clamped rod of the wrench chart moved to its elastica window
+    (:func:`~flexkin.rod.elastica.taut_windows`), where the Newton resolves it."""
+    if not np.any(charts == CHART_WRENCH):
+        return X, charts
+    X = np.array(X, dtype=float)
+    charts = np.array(charts, dtype=np.int64)
+    for i in range(3):
+        sl = system.layout.rod[i]
+        if sl.stop - sl.start != 3:
+            continue
+        Z = np.ascontiguousarray(X[:, sl])
+        ch = np.ascontiguousarray(charts[:, i])
+        if taut_windows(ch, Z, CHART_WRENCH, CHART_LIB, CHART_ROT):
+            X[:, sl], charts[:, i] = Z, ch
+    return X, charts
+
+
 def refine(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max_mode: int, held: str = "pose",
            diag: dict[str, Any] | None = None, deadline: Deadline | None = None,
            progress: Progress | None = None, margin: bool = False, max_winding: int = 1) -> list[Solution]:
@@ -381,6 +400,7 @@ def refine(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max
     -------
     list of Solution
     """
+    X, charts = _taut_in_windows(system, X, charts)
     res = newton_within(system, X, charts, load, held, deadline)
     good = res.residual <= RESIDUAL_TOL
     if diag is not None:
