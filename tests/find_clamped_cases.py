@@ -4,6 +4,7 @@ Usage (from the repository root; a few minutes on the 2-core machine)::
 
     python tests/find_clamped_cases.py heavy   # the heavy-load case: counts and forces
     python tests/find_clamped_cases.py fold    # the near-fold pair: pose and both solutions
+    python tests/find_clamped_cases.py own [FY ...]   # the own mechanism's heavy-load case
 
 Nothing here calls flexkin's solvers: ``tests/ik_oracle.py`` (multi-start shooting, leg curves),
 its own Newton on the 12 equations for the continuation, ``tests/stability_oracle.py``.
@@ -16,6 +17,15 @@ halved on failure) until the continuation stalls: both are then within a few 1e-
 where they merge.  The pose is then moved back from the fold until the pair's inputs differ by
 about ``TARGET`` (relative), both are polished by DOP853 and verified by re-integration, and
 their stability is taken from the discretised-energy oracle.
+
+``own``: the mechanism ``tests/data/own_clamped_heavy.toml`` was designed to share nothing with the
+examples (every rod clamped, legs P-R-P, three different rods and tip angles, a scalene platform).
+At the generic pose (0.04 m, -0.03 m, 7 deg) the oracle (the unit 3-PF's configuration) was run
+under downward loads F_y = -400 N (15 equilibria in scope, all above 256 EI/L^2, max 953) and
+-200 N (22 in scope, 19 above 256 EI/L^2, max 992: the case kept, with more equilibria and
+forces still inside the oracle's 1000 EI/L^2).  This mode prints the counts for the loads given
+(default: the test's) and every equilibrium in scope with its full-precision values (the source of
+``OWN_KNOWN_MISS``: the equilibrium the tests found flexkin missing).
 """
 
 from __future__ import annotations
@@ -148,5 +158,29 @@ def fold():
               f"{st.stable} index {st.index} min_eig {st.min_eig:.4f} converged {st.converged}")
 
 
+def own(*fys):
+    import flexkin
+    from test_clamped_heavy_and_fold import OWN_LOAD, OWN_MECHANISM, OWN_ORACLE, OWN_POSE
+    from test_clamped_mechanism import _in_flexkin_scope, _oracle_winding
+
+    m = flexkin.load_mechanism(OWN_MECHANISM)
+    np.set_printoptions(precision=17)
+    for fy in [float(v) for v in fys] or [OWN_LOAD[1]]:
+        load = (OWN_LOAD[0], fy, OWN_LOAD[2])
+        t0, c0 = time.time(), time.process_time()
+        sols = O.oracle_ik(m, OWN_POSE, load=load, **OWN_ORACLE)
+        print(f"load {load}: oracle {len(sols)} in {time.time() - t0:.1f} s wall, "
+              f"{time.process_time() - c0:.1f} s CPU")
+        ins = [s for s in sols if _in_flexkin_scope(s) and max(r.R_dimless for r in s.rods) <= 1000.0]
+        R = [max(r.R_dimless for r in s.rods) for s in ins]
+        print(f"in scope {len(ins)}, above 256 EI/L^2 {sum(r > 256 for r in R)}, max R L^2/EI {max(R, default=0):.1f}")
+        for s in ins:
+            print(s.mode_label, "windings", [_oracle_winding(q) for q in s.rods], "R L^2/EI",
+                  [round(q.R_dimless, 1) for q in s.rods], "k", [q.k for q in s.rods])
+            print("   inputs", s.inputs.tolist())
+            print("   forces", s.forces.tolist())
+            print("   base moments", [q.base_moment for q in s.rods], "tip moments", s.tip_moments.tolist())
+
+
 if __name__ == "__main__":
-    {"heavy": heavy, "fold": fold}[sys.argv[1]]()
+    {"heavy": heavy, "fold": fold, "own": own}[sys.argv[1]](*sys.argv[2:])
