@@ -33,6 +33,9 @@ __all__ = ["libration_grid", "rotation_grid", "fill_libration", "fill_rotation",
 
 #: per node: x, y, fx, fy, theta, m_L, a, b, m0, lambda, mode
 FEATURES = 11
+#: smallest ``k'`` of the grids: a taut rod crossing the saddle once has ``k' ~ 4 exp(-lambda L / 2)``,
+#: so the grids seed taut rods up to ``lambda L ~ 55`` (beyond, the traces continue them)
+KP_MIN = 1e-12
 
 
 def _log_sech_nodes(n_uniform: int, n_log: int, kp_min: float = 1e-6) -> np.ndarray:
@@ -47,7 +50,7 @@ def _log_sech_nodes(n_uniform: int, n_log: int, kp_min: float = 1e-6) -> np.ndar
 def libration_grid(max_mode: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Nodes ``(v, phi_e, s)`` of the libration atlas (``v`` symmetric about 0) for rods with
     up to ``max_mode`` inflections inside."""
-    vp = _log_sech_nodes(31, 12)
+    vp = _log_sech_nodes(31, 30, KP_MIN)
     v = np.concatenate([-vp[::-1], vp[1:]])
     phie = np.linspace(-HALF_PI, HALF_PI, 33)
     s = np.linspace(0.0, (max_mode + 1) * math.pi, 32 * (max_mode + 1) + 1)[1:]
@@ -56,7 +59,7 @@ def libration_grid(max_mode: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def rotation_grid(max_winding: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Nodes ``(nu, chi_0, d_chi)`` of the rotation atlas for windings up to ``max_winding``."""
-    nu = _log_sech_nodes(30, 10)
+    nu = _log_sech_nodes(30, 30, KP_MIN)
     chi0 = np.linspace(0.0, math.pi, 33)
     c = (max_winding + 0.5) * math.pi + 0.25
     dchi = np.linspace(-c, c, 2 * int(math.ceil(24 * c / math.pi)) + 1)

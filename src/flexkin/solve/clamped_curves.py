@@ -368,6 +368,11 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
         if where != 0:
             if where == 1:
                 limits[0] += 1
+            # the first point beyond the scope ends the polyline: its last segment covers the
+            # stretch up to the boundary (a rod of the scope next to a d-mode boundary lies on it;
+            # the solutions are held to the scope exactly after their refinement)
+            out[n_out, 0], out[n_out, 1], out[n_out, 2] = z[0], z[1], z[2]
+            n_out += 1
             break
         out[n_out, 0], out[n_out, 1], out[n_out, 2] = z[0], z[1], z[2]
         n_out += 1
