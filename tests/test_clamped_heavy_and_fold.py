@@ -58,6 +58,13 @@ OLD_LIMIT = 256.0
 ORACLE_LIMIT = 1000.0
 
 
+def _oracle_in_scope(mech, pose, load, config) -> tuple:
+    """The oracle's equilibria (``config``: its keyword arguments) in SPEC §2's scope with every
+    rod at most ``ORACLE_LIMIT`` EI/L^2."""
+    sols = O.oracle_ik(mech, pose, load=load, **config)
+    return tuple(s for s in sols if _in_flexkin_scope(s) and max(r.R_dimless for r in s.rods) <= ORACLE_LIMIT)
+
+
 @functools.cache
 def heavy_mech():
     return flexkin.load_mechanism(EXAMPLES / HEAVY_MECHANISM)
@@ -66,8 +73,7 @@ def heavy_mech():
 @functools.cache
 def heavy_oracle():
     """The oracle's equilibria in SPEC §2's scope with every rod at most 1000 EI/L^2."""
-    sols = O.oracle_ik(heavy_mech(), HEAVY_POSE, load=HEAVY_LOAD, **HEAVY_ORACLE)
-    return tuple(s for s in sols if _in_flexkin_scope(s) and max(r.R_dimless for r in s.rods) <= ORACLE_LIMIT)
+    return _oracle_in_scope(heavy_mech(), HEAVY_POSE, HEAVY_LOAD, HEAVY_ORACLE)
 
 
 @functools.cache
@@ -190,8 +196,7 @@ def own_mech():
 @functools.cache
 def own_oracle():
     """The oracle's equilibria of the own mechanism in SPEC §2's scope, every rod <= 1000 EI/L^2."""
-    sols = O.oracle_ik(own_mech(), OWN_POSE, load=OWN_LOAD, **OWN_ORACLE)
-    return tuple(s for s in sols if _in_flexkin_scope(s) and max(r.R_dimless for r in s.rods) <= ORACLE_LIMIT)
+    return _oracle_in_scope(own_mech(), OWN_POSE, OWN_LOAD, OWN_ORACLE)
 
 
 @functools.cache
