@@ -283,6 +283,19 @@ def test_own_heavy_wider_mode_scope_keeps_every_solution():
     assert not dropped
 
 
+def test_heavy_wider_winding_scope_keeps_every_solution():
+    """The scope grows with max_winding: every equilibrium of the heavy case listed with
+    max_winding 1 is listed with 2 (before near-taut candidates were interpolated in their windows,
+    max_winding 2 dropped four, and max_mode 3 one)."""
+    m = heavy_mech()
+    g = O.Geom.of(m)
+    wide = flexkin.ik(m, HEAVY_POSE, load=HEAVY_LOAD, max_winding=2)
+    dropped = [f for f in heavy_flexkin().solutions if not _listed(f, wide, g)]
+    record("heavy load: max_winding 2 keeps max_winding 1's", f"{len(wide.solutions)} listed, "
+           f"{len(dropped)} of max_winding 1's dropped {[np.round(f.inputs, 6).tolist() for f in dropped]}")
+    assert not dropped
+
+
 def test_near_taut_chords_keep_the_winding():
     """Candidates on leg 3's curves of the own case (max_mode 3): along a curve the tip angle is
     fixed, so the rod's total turning is constant on it.  A wrench-chart segment of a near-taut rod
