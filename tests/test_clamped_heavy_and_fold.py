@@ -268,7 +268,7 @@ def test_own_heavy_load_complete_against_two_oracle_runs():
 # in the wrench chart at a tip sensitivity of about 500; the max_mode-3 polyline (traced from another
 # seed: the wrench atlas' grid depends on max_mode) has no vertex near the pair, and the candidate on its
 # chord, 1e-3 low in the base moment, was a librating rod, so the Newton found the twin.  Candidates of
-# near-taut segments are now interpolated in their elastica windows (``clamped_curves.chord_points``).
+# near-taut segments are now interpolated in their elastica windows (``clamped_curves.segment_charts``).
 
 
 def test_own_heavy_wider_mode_scope_keeps_every_solution():
@@ -299,12 +299,12 @@ def test_heavy_wider_winding_scope_keeps_every_solution():
 def test_near_taut_chords_keep_the_winding():
     """Candidates on leg 3's curves of the own case (max_mode 3): along a curve the tip angle is
     fixed, so the rod's total turning is constant on it.  A wrench-chart segment of a near-taut rod
-    that ``chord_points`` interpolates in its elastica window keeps that turning (to 1e-2 rad) at its
+    that ``segment_charts`` puts in its elastica window keeps that turning (to 1e-2 rad) at its
     midpoint, while the linear chord's midpoint of at least one of them turns by more than pi away (a
     rod on the other side of the separatrix, of another winding: the wider-mode loss above)."""
     from flexkin.rod.kernels import eval_rods
     from flexkin.rod.slots import CHART_WRENCH, NQ, TH
-    from flexkin.solve.clamped_curves import chord_points, clamped_leg_curve
+    from flexkin.solve.clamped_curves import clamped_leg_curve, segment_charts
     from flexkin.system import System
 
     m = own_mech()
@@ -324,8 +324,9 @@ def test_near_taut_chords_keep_the_winding():
     ends = turning(ch, za)
     same = np.abs(ends - turning(ch, zb)) < 1e-6  # both ends on one curve of fixed turning
     za, zb, ch, ends = za[same], zb[same], ch[same], ends[same]
-    zm, cm = np.empty_like(za), np.empty(len(za), np.int64)
-    chord_points(ch, za, zb, np.full(len(za), 0.5), zm, cm)
+    wa, wb, cm = np.empty_like(za), np.empty_like(zb), np.empty(len(za), np.int64)
+    segment_charts(ch, za, zb, wa, wb, cm)
+    zm = 0.5 * (wa + wb)
     moved = cm != ch
     kept = np.abs(turning(cm, zm) - ends)[moved]
     linear = np.abs(turning(ch, 0.5 * (za + zb)) - ends)[moved]

@@ -54,7 +54,7 @@ from ..rod.wrench_atlas import get_wrench_atlas, moment_extra, turning_max
 from .conditions import condition_eval
 from .leg_curve import LegCurve
 
-__all__ = ["clamped_leg_curve", "chord_points"]
+__all__ = ["clamped_leg_curve", "segment_charts"]
 
 TWO_PI = 2.0 * math.pi
 #: turning (rad) traced beyond the winding scope, which is applied exactly to refined solutions
@@ -506,27 +506,26 @@ def _trace_all(Z, charts, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, 
 
 
 @njit
-def chord_points(charts, Za, Zb, s, Z, out_charts) -> None:
-    """Points at parameters ``s`` (n,) of the polyline segments ``Za -> Zb`` (n, 3; chart
-    ``charts``) into ``Z`` and ``out_charts`` (the IK's candidates on the clamped curves).
+def segment_charts(charts, Za, Zb, Wa, Wb, out_charts) -> None:
+    """The chart each polyline segment ``Za -> Zb`` (n, 3; chart ``charts``) of a clamped curve
+    is interpolated in (``out_charts``) and its ends there (``Wa``, ``Wb``): the IK's candidates
+    are points on these chords.
 
     A segment is a chord of the curve.  In the wrench chart a near-taut rod's tip depends on
     the base moment like ``exp(lambda L)`` (tip sensitivity beyond :data:`SENS_WRENCH` at an
     end), so the chord's deviation from the curve in ``m0`` can exceed the rod's distance from
-    the separatrix: the interpolated rod lies on the other side (librating instead of rotating,
-    a different winding) and the Newton converges to a different equilibrium.  Such a segment,
-    with both ends in elastica windows of one kind, is interpolated in its window coordinates
-    (:mod:`flexkin.rod.elastica`), where a rotating window stays rotating and the chord follows
-    the curve; every other segment linearly in its own chart."""
+    the separatrix: a rod interpolated on it lies on the other side (librating instead of
+    rotating, a different winding) and the Newton converges to a different equilibrium.  Such a
+    segment, with both ends in elastica windows of one kind, is interpolated in its window
+    coordinates (:mod:`flexkin.rod.elastica`), where a rotating window stays rotating and the
+    chord follows the curve; every other segment in its own chart."""
     q = np.empty(NQ)
     gr = np.empty((NQ, 3))
-    for r in range(Z.shape[0]):
-        ch = charts[r]
-        t = s[r]
-        out_charts[r] = ch
+    for r in range(Za.shape[0]):
+        out_charts[r] = charts[r]
         for c in range(3):
-            Z[r, c] = Za[r, c] + t * (Zb[r, c] - Za[r, c])
-        if ch != CHART_WRENCH:
+            Wa[r, c], Wb[r, c] = Za[r, c], Zb[r, c]
+        if charts[r] != CHART_WRENCH:
             continue
         wrench_eval(Za[r, 0], Za[r, 1], Za[r, 2], q, gr)
         sens = tip_sensitivity(gr)
@@ -548,9 +547,8 @@ def chord_points(charts, Za, Zb, s, Z, out_charts) -> None:
         ueb += sh
         if abs(usb - usa) > 0.25 * per or abs(ueb - uea) > 0.25 * per or (uea - usa) * (ueb - usb) <= 0.0:
             continue
-        Z[r, 0] = va + t * (vb - va)
-        Z[r, 1] = usa + t * (usb - usa)
-        Z[r, 2] = uea + t * (ueb - uea)
+        Wa[r, 0], Wa[r, 1], Wa[r, 2] = va, usa, uea
+        Wb[r, 0], Wb[r, 1], Wb[r, 2] = vb, usb, ueb
         out_charts[r] = CHART_ROT if ra else CHART_LIB
 
 
