@@ -259,16 +259,18 @@ def test_own_heavy_load_complete_against_two_oracle_runs():
     assert not missed, len(missed)
 
 
-# found with the own case: ik(max_mode=3) drops two equilibria that ik(max_mode=2) lists, a close pair
+# found with the own case: ik(max_mode=3) dropped two equilibria that ik(max_mode=2) lists, a close pair
 # with inputs (0.123992 m, -0.845741 rad, -0.099438 m) and (0.124364 m, -0.861305 rad, -0.100080 m),
 # R L^2/EI about 205 / 78 / 628 and 208 / 78 / 632, three rods winding once; the second, as the oracle
 # sees it: d-modes (1, 1, 0), windings (-1, 1, 1), turnings -5.46 / 3.51 / 6.67 rad, leg 3 taut and
-# non-inflectional (k - 1 = 1.2e-6)
+# non-inflectional (k - 1 = 1.2e-6).  Each has a twin 1.3e-4 rad away whose leg-3 rod librates on the
+# other side of the separatrix (turning -5.90 rad).  Leg 3's rotating curve passes both runs' polylines
+# in the wrench chart at a tip sensitivity of about 500; the max_mode-3 polyline (traced from another
+# seed: the wrench atlas' grid depends on max_mode) has no vertex near the pair, and the candidate on its
+# chord, 1e-3 low in the base moment, was a librating rod, so the Newton found the twin.  Candidates of
+# near-taut segments are now interpolated in their elastica windows (``clamped_curves.segment_charts``).
 
 
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="ik(max_mode=3) drops two equilibria ik(max_mode=2) lists (see "
-                   "above); remove the xfail when the wider scope keeps them")
 def test_own_heavy_wider_mode_scope_keeps_every_solution():
     """The scope grows with max_mode: every equilibrium listed with max_mode 2 is listed with 3
     (a property of flexkin alone, no oracle)."""
@@ -279,6 +281,60 @@ def test_own_heavy_wider_mode_scope_keeps_every_solution():
     record("own heavy load: max_mode 3 keeps max_mode 2's", f"{len(wide.solutions)} listed, "
            f"{len(dropped)} of max_mode 2's dropped {[np.round(f.inputs, 6).tolist() for f in dropped]}")
     assert not dropped
+
+
+def test_heavy_wider_winding_scope_keeps_every_solution():
+    """The scope grows with max_winding: every equilibrium of the heavy case listed with
+    max_winding 1 is listed with 2 (before near-taut candidates were interpolated in their windows,
+    max_winding 2 dropped four, and max_mode 3 one)."""
+    m = heavy_mech()
+    g = O.Geom.of(m)
+    wide = flexkin.ik(m, HEAVY_POSE, load=HEAVY_LOAD, max_winding=2)
+    dropped = [f for f in heavy_flexkin().solutions if not _listed(f, wide, g)]
+    record("heavy load: max_winding 2 keeps max_winding 1's", f"{len(wide.solutions)} listed, "
+           f"{len(dropped)} of max_winding 1's dropped {[np.round(f.inputs, 6).tolist() for f in dropped]}")
+    assert not dropped
+
+
+def test_near_taut_chords_keep_the_winding():
+    """Candidates on leg 3's curves of the own case (max_mode 3): along a curve the tip angle is
+    fixed, so the rod's total turning is constant on it.  A wrench-chart segment of a near-taut rod
+    that ``segment_charts`` puts in its elastica window keeps that turning (to 1e-2 rad) at its
+    midpoint, while the linear chord's midpoint of at least one of them turns by more than pi away (a
+    rod on the other side of the separatrix, of another winding: the wider-mode loss above)."""
+    from flexkin.rod.kernels import eval_rods
+    from flexkin.rod.slots import CHART_WRENCH, NQ, TH
+    from flexkin.solve.clamped_curves import clamped_leg_curve, segment_charts
+    from flexkin.system import System
+
+    m = own_mech()
+    B = System.from_mechanism(m).platform_points(np.asarray(OWN_POSE)[None])[0]
+    curve = clamped_leg_curve(m, 2, B[2], OWN_POSE[2], 3)
+    za = np.concatenate([br["z"][:-1] for br in curve.branches])
+    zb = np.concatenate([br["z"][1:] for br in curve.branches])
+    ch = np.concatenate([br["chart"][:-1] for br in curve.branches])
+    w = ch == CHART_WRENCH
+    za, zb, ch = za[w], zb[w], ch[w]
+
+    def turning(charts, z):
+        q, g = np.empty((len(z), NQ)), np.empty((len(z), NQ, 3))
+        eval_rods(np.ascontiguousarray(charts), np.ascontiguousarray(z), q, g)
+        return q[:, TH]
+
+    ends = turning(ch, za)
+    same = np.abs(ends - turning(ch, zb)) < 1e-6  # both ends on one curve of fixed turning
+    za, zb, ch, ends = za[same], zb[same], ch[same], ends[same]
+    wa, wb, cm = np.empty_like(za), np.empty_like(zb), np.empty(len(za), np.int64)
+    segment_charts(ch, za, zb, wa, wb, cm)
+    zm = 0.5 * (wa + wb)
+    moved = cm != ch
+    kept = np.abs(turning(cm, zm) - ends)[moved]
+    linear = np.abs(turning(ch, 0.5 * (za + zb)) - ends)[moved]
+    record("near-taut chords", f"{moved.sum()} of {len(za)} wrench-chart segments in windows, turning kept to "
+           f"{kept.max():.1e} rad (linear chords off by up to {linear.max():.2f} rad)")
+    assert moved.sum() >= 10
+    assert kept.max() < 1e-2
+    assert linear.max() > math.pi
 
 
 def test_own_heavy_known_miss_is_an_equilibrium():

@@ -54,7 +54,7 @@ from ..rod.wrench_atlas import get_wrench_atlas, moment_extra, turning_max
 from .conditions import condition_eval
 from .leg_curve import LegCurve
 
-__all__ = ["clamped_leg_curve"]
+__all__ = ["clamped_leg_curve", "segment_charts"]
 
 TWO_PI = 2.0 * math.pi
 #: turning (rad) traced beyond the winding scope, which is applied exactly to refined solutions
@@ -503,6 +503,53 @@ def _trace_all(Z, charts, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, 
             _visit(w, lam_nodes, npsi, nt, mext, visited)
     starts[n_lines] = n_out
     return n_lines
+
+
+@njit
+def segment_charts(charts, Za, Zb, Wa, Wb, out_charts) -> None:
+    """The chart each polyline segment ``Za -> Zb`` (n, 3; chart ``charts``) of a clamped curve
+    is interpolated in (``out_charts``) and its ends there (``Wa``, ``Wb``): the IK's candidates
+    are points on these chords.
+
+    A segment is a chord of the curve.  In the wrench chart a near-taut rod's tip depends on
+    the base moment like ``exp(lambda L)`` (tip sensitivity beyond :data:`SENS_WRENCH` at an
+    end), so the chord's deviation from the curve in ``m0`` can exceed the rod's distance from
+    the separatrix: a rod interpolated on it lies on the other side (librating instead of
+    rotating, a different winding) and the Newton converges to a different equilibrium.  Such a
+    segment, with both ends in elastica windows of one kind, is interpolated in its window
+    coordinates (:mod:`flexkin.rod.elastica`), where a rotating window stays rotating and the
+    chord follows the curve; every other segment in its own chart."""
+    q = np.empty(NQ)
+    gr = np.empty((NQ, 3))
+    for r in range(Za.shape[0]):
+        out_charts[r] = charts[r]
+        for c in range(3):
+            Wa[r, c], Wb[r, c] = Za[r, c], Zb[r, c]
+        if charts[r] != CHART_WRENCH:
+            continue
+        wrench_eval(Za[r, 0], Za[r, 1], Za[r, 2], q, gr)
+        sens = tip_sensitivity(gr)
+        wrench_eval(Zb[r, 0], Zb[r, 1], Zb[r, 2], q, gr)
+        sens = max(sens, tip_sensitivity(gr))
+        if not sens > SENS_WRENCH:
+            continue
+        ra, va, usa, uea = window_of(Za[r, 0], Za[r, 1], Za[r, 2])
+        rb, vb, usb, ueb = window_of(Zb[r, 0], Zb[r, 1], Zb[r, 2])
+        if ra != rb or not (va == va and vb == vb):
+            continue
+        # the same orbit's ends of a window are defined up to whole periods (4K libration, 2K
+        # rotation): shift the second next to the first, and keep the segment only when its
+        # window moves by less than a quarter period (else the chord in wrench space is kept)
+        k, kp = modulus(vb)
+        per = (2.0 if rb else 4.0) * complete(k * k, kp * kp)[0]
+        sh = per * math.floor((usa - usb) / per + 0.5)
+        usb += sh
+        ueb += sh
+        if abs(usb - usa) > 0.25 * per or abs(ueb - uea) > 0.25 * per or (uea - usa) * (ueb - usb) <= 0.0:
+            continue
+        Wa[r, 0], Wa[r, 1], Wa[r, 2] = va, usa, uea
+        Wb[r, 0], Wb[r, 1], Wb[r, 2] = vb, usb, ueb
+        out_charts[r] = CHART_ROT if ra else CHART_LIB
 
 
 @lru_cache(maxsize=2)

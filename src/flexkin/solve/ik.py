@@ -24,7 +24,7 @@ from ..core.validation import as_load, as_triple, check_max_mode, check_max_wind
 from ..io.progress import Progress, substage
 from ..results import IKDiagnostics, KinematicsResult
 from ..system import System
-from .clamped_curves import LAMBDA_LIMIT
+from .clamped_curves import LAMBDA_LIMIT, segment_charts
 from .curves import leg_curves
 from .equilibrium import equilibrium_triples
 from .finish import SCOPE_MESSAGE, force_limit_message, refine
@@ -134,9 +134,14 @@ def ik(mech, pose: ArrayLike, load: ArrayLike | None = None, max_mode: int = 2, 
                                 max_winding=max_winding)
     X = np.zeros((len(seg), lay.n_unknowns))
     X[:, lay.pose] = pose
-    charts = np.stack([cs[i][seg[:, i]] for i in range(3)], axis=1)  # a rod in the chart of its branch
+    charts = np.empty((len(seg), 3), np.int64)
     for i in range(3):
-        a, b = zs[i][0][seg[:, i]], zs[i][1][seg[:, i]]
+        za, zb, ci = zs[i][0], zs[i][1], cs[i]  # a rod in the chart of its branch
+        if mech.legs[i].platform_joint.carries_moment and len(ci):  # a near-taut clamped rod: in its window
+            za, zb, ci = np.empty_like(za), np.empty_like(zb), np.empty_like(ci)
+            segment_charts(cs[i], zs[i][0], zs[i][1], za, zb, ci)
+        a, b = za[seg[:, i]], zb[seg[:, i]]
+        charts[:, i] = ci[seg[:, i]]
         X[:, lay.rod[i]] = a + s[:, i:i + 1] * (b - a)
         ua, ub = us[i][0][seg[:, i]], us[i][1][seg[:, i]]
         X[:, lay.inputs.start + i] = ua + s[:, i] * (ub - ua)
