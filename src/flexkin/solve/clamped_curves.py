@@ -640,8 +640,10 @@ def clamped_leg_curve(mech, i: int, B: NDArray[np.float64], theta: float, max_mo
 ON_SEGMENT = 0.01
 #: consecutive vertices on earlier polylines that make a traced-again stretch
 RUN = 4
-#: tip force (EI/L^2) beyond which a rod is kept on every polyline it was traced on
-TAUT_FORCE = 100.0
+#: tip force (EI/L^2; lambda L ~ 14) beyond which a rod is kept on every polyline it was traced
+#: on: the Newton on such rods converges only from starts closer than the chords' spacing (on the
+#: unit 3-PF at (0, 0, 0), four equilibria at 390-450 EI/L^2 were lost without it)
+TAUT_FORCE = 200.0
 
 
 @njit
@@ -698,7 +700,6 @@ def _distinct_stretches(branches: list[dict[str, NDArray]], leg) -> tuple[dict[s
     # the window's chords (a rod near taut is ill-conditioned in its base wrench)
     for br in sorted(branches, key=lambda b: int(b["chart"][0]) == CHART_WRENCH):
         P = points(br)
-        # taut rods stay on every polyline: their Newton converges only from close starts
         cov = _covered(P, Q0, Q1, n_seg, ON_SEGMENT) & (np.hypot(P[:, 1], P[:, 2]) <= TAUT_FORCE)
         drop = np.zeros(len(P), bool)
         j = 0
