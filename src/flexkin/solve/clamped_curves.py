@@ -681,7 +681,9 @@ def _distinct_stretches(branches: list[dict[str, NDArray]], leg) -> tuple[dict[s
     polylines (in input, tip force, tip moment, elastic energy and d-mode, scaled by the rod's length
     and stiffness: taut rods of different shapes share nearly the same tip wrench) is such a
     stretch: its inner vertices are dropped (its end vertices stay, so that the pieces
-    overlap the earlier polyline by a segment), and a polyline so split becomes two."""
+    overlap the earlier polyline by a segment), and a polyline so split becomes two.  Rods above
+    :data:`TAUT_FORCE` stay on every polyline, and the elastica windows' polylines are kept before
+    the wrench chart's."""
     if len(branches) < 2:
         return tuple(branches)
     L, EI = leg.rod.length, leg.rod.EI
