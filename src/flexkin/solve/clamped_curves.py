@@ -632,7 +632,103 @@ def clamped_leg_curve(mech, i: int, B: NDArray[np.float64], theta: float, max_mo
         zl = out[starts[a]:starts[a + 1]]
         if len(zl) >= 2:
             branches.append(_thin(_branch_data(leg, B, zl, int(line_chart[a])), leg.rod.EI, force_tol))
-    return LegCurve(i, leg.actuation, tuple(branches), limits=int(limits[0]))
+    return LegCurve(i, leg.actuation, _distinct_stretches(branches, leg), limits=int(limits[0]))
+
+
+#: a vertex lies on an earlier polyline when it is within this fraction of a segment's length of
+#: it (a chord's sag is an eighth of its turning angle: 0.06 for the thinned segments' 0.5 rad)
+ON_SEGMENT = 0.01
+#: consecutive vertices on earlier polylines that make a traced-again stretch
+RUN = 4
+#: tip force (EI/L^2; lambda L ~ 14) beyond which a rod is kept on every polyline it was traced
+#: on: the Newton on such rods converges only from starts closer than the chords' spacing (on the
+#: unit 3-PF at (0, 0, 0), four equilibria at 390-450 EI/L^2 were lost without it)
+TAUT_FORCE = 200.0
+
+
+@njit
+def _covered(P: np.ndarray, Q0: np.ndarray, Q1: np.ndarray, n_seg: int, rel: float) -> np.ndarray:
+    """Whether each vertex ``P[j]`` lies within ``rel`` times a segment's length of one of the
+    first ``n_seg`` segments ``Q0 -> Q1``."""
+    out = np.zeros(P.shape[0], np.bool_)
+    d = P.shape[1]
+    for j in range(P.shape[0]):
+        for s in range(n_seg):
+            ab = 0.0
+            ap = 0.0
+            for c in range(d):
+                e = Q1[s, c] - Q0[s, c]
+                ab += e * e
+                ap += e * (P[j, c] - Q0[s, c])
+            t = min(max(ap / ab, 0.0), 1.0) if ab > 0.0 else 0.0
+            r = 0.0
+            for c in range(d):
+                e = Q0[s, c] + t * (Q1[s, c] - Q0[s, c]) - P[j, c]
+                r += e * e
+            if r <= rel * rel * ab:
+                out[j] = True
+                break
+    return out
+
+
+def _distinct_stretches(branches: list[dict[str, NDArray]], leg) -> tuple[dict[str, NDArray], ...]:
+    """The polylines without the stretches that trace an earlier polyline again.
+
+    A seed beyond where an earlier trace of its curve ended (a chart switch, the force limit) is
+    traced both ways, over the stretch the earlier trace covered too: every rod of a leg then lies
+    on 2-3 polylines and the equilibrium search finds each solution 10-40 times.  A run of
+    :data:`RUN` or more vertices within :data:`ON_SEGMENT` of a segment's length of earlier
+    polylines (in input, tip force, tip moment, elastic energy and d-mode, scaled by the rod's length
+    and stiffness: taut rods of different shapes share nearly the same tip wrench) is such a
+    stretch: its inner vertices are dropped (its end vertices stay, so that the pieces
+    overlap the earlier polyline by a segment), and a polyline so split becomes two.  Rods above
+    :data:`TAUT_FORCE` stay on every polyline, and the elastica windows' polylines are kept before
+    the wrench chart's."""
+    if len(branches) < 2:
+        return tuple(branches)
+    L, EI = leg.rod.length, leg.rod.EI
+    us = 1.0 if leg.actuator.angular else L
+
+    def points(br: dict[str, NDArray]) -> NDArray:
+        return np.column_stack([br["input"] / us, br["force"] * (br["length"] ** 2 / EI)[:, None],
+                                br["tip_moment"] * br["length"] / EI, br["energy"] * br["length"] / EI,
+                                10.0 * br["mode"]])
+
+    n_all = sum(len(br["input"]) for br in branches)
+    Q0, Q1 = np.empty((n_all, 6)), np.empty((n_all, 6))
+    n_seg = 0
+    kept: list[dict[str, NDArray]] = []
+    # the elastica windows first: where a stretch was traced in both charts, Newton converges from
+    # the window's chords (a rod near taut is ill-conditioned in its base wrench)
+    for br in sorted(branches, key=lambda b: int(b["chart"][0]) == CHART_WRENCH):
+        P = points(br)
+        cov = _covered(P, Q0, Q1, n_seg, ON_SEGMENT) & (np.hypot(P[:, 1], P[:, 2]) <= TAUT_FORCE)
+        drop = np.zeros(len(P), bool)
+        j = 0
+        while j < len(P):  # the inner vertices of runs of covered ones
+            if not cov[j]:
+                j += 1
+                continue
+            e = j
+            while e < len(P) and cov[e]:
+                e += 1
+            if e - j >= RUN:
+                drop[j + 1:e - 1] = True
+                if j == 0:
+                    drop[0] = True
+                if e == len(P):
+                    drop[e - 1] = True
+            j = e
+        cut = np.flatnonzero(np.diff(np.concatenate([[1], drop.view(np.int8), [1]])))
+        for a, b in zip(cut[::2], cut[1::2]):  # the kept pieces [a, b)
+            if b - a < 2:
+                continue
+            piece = {k: v[a:b] for k, v in br.items()}
+            kept.append(piece)
+            m = b - a - 1
+            Q0[n_seg:n_seg + m], Q1[n_seg:n_seg + m] = P[a:b - 1], P[a + 1:b]
+            n_seg += m
+    return tuple(kept)
 
 
 @njit
