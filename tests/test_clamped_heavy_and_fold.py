@@ -271,16 +271,22 @@ def test_own_heavy_load_complete_against_two_oracle_runs():
 # near-taut segments are now interpolated in their elastica windows (``clamped_curves.segment_charts``).
 
 
+def _dropped(narrow, wide, mech, what: str) -> list:
+    """The solutions of ``narrow`` (a default-scope IK) that ``wide`` (a wider scope) does not
+    list, recorded under ``what``."""
+    g = O.Geom.of(mech)
+    dropped = [f for f in narrow.solutions if not _listed(f, wide, g)]
+    record(what, f"{len(wide.solutions)} listed, {len(dropped)} of the default scope's dropped "
+                 f"{[np.round(f.inputs, 6).tolist() for f in dropped]}")
+    return dropped
+
+
 def test_own_heavy_wider_mode_scope_keeps_every_solution():
     """The scope grows with max_mode: every equilibrium listed with max_mode 2 is listed with 3
     (a property of flexkin alone, no oracle)."""
     m = own_mech()
-    g = O.Geom.of(m)
     wide = flexkin.ik(m, OWN_POSE, load=OWN_LOAD, max_mode=3)
-    dropped = [f for f in own_flexkin().solutions if not _listed(f, wide, g)]
-    record("own heavy load: max_mode 3 keeps max_mode 2's", f"{len(wide.solutions)} listed, "
-           f"{len(dropped)} of max_mode 2's dropped {[np.round(f.inputs, 6).tolist() for f in dropped]}")
-    assert not dropped
+    assert not _dropped(own_flexkin(), wide, m, "own heavy load: max_mode 3 keeps max_mode 2's")
 
 
 def test_heavy_wider_winding_scope_keeps_every_solution():
@@ -288,12 +294,8 @@ def test_heavy_wider_winding_scope_keeps_every_solution():
     max_winding 1 is listed with 2 (before near-taut candidates were interpolated in their windows,
     max_winding 2 dropped four, and max_mode 3 one)."""
     m = heavy_mech()
-    g = O.Geom.of(m)
     wide = flexkin.ik(m, HEAVY_POSE, load=HEAVY_LOAD, max_winding=2)
-    dropped = [f for f in heavy_flexkin().solutions if not _listed(f, wide, g)]
-    record("heavy load: max_winding 2 keeps max_winding 1's", f"{len(wide.solutions)} listed, "
-           f"{len(dropped)} of max_winding 1's dropped {[np.round(f.inputs, 6).tolist() for f in dropped]}")
-    assert not dropped
+    assert not _dropped(heavy_flexkin(), wide, m, "heavy load: max_winding 2 keeps max_winding 1's")
 
 
 def test_near_taut_chords_keep_the_winding():
