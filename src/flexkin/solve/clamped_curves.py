@@ -32,7 +32,7 @@ from ..core.geometry2d_kernels import wrap_angle
 from ..core.jit import njit
 from ..rod.elastica import SENS_WINDOW, SENS_WRENCH, reduce_window, tip_sensitivity, window_of
 from ..rod.elliptic import complete
-from ..rod.kernels import clamped_mode, eval_rod, eval_rods, project
+from ..rod.kernels import clamped_mode, eval_rod, project
 from ..rod.orbit import modulus
 from ..rod.slots import (
     CHART_LIB,
@@ -294,14 +294,33 @@ def _near_traced_window(chart, z, wvisited) -> bool:
 
 
 @njit
-def _in_scope(chart, z, q, max_mode, lam_max, turn_max) -> int:
-    """0 if the rod ``z`` (evaluated into ``q``) is searched; 1 if its ``lambda L`` is beyond the
-    search's numerical limit ``lam_max``; 2 if it is outside the scope (turning or d-mode)."""
+def _in_scope(q, mode, max_mode, lam_max, turn_max) -> int:
+    """0 if the rod evaluated into ``q`` (of d-mode ``mode``) is searched; 1 if its ``lambda L``
+    is beyond the search's numerical limit ``lam_max``; 2 if it is outside the scope (turning or
+    d-mode)."""
     if q[PHI] > lam_max:
         return 1
     if abs(q[TH]) > turn_max + 1e-9:
         return 2
-    return 0 if clamped_mode(chart, z, 1e-9)[0] <= max_mode else 2
+    return 0 if mode <= max_mode else 2
+
+
+#: columns of a traced point (:func:`_store`): the chart coordinates, then the unit rod's tip,
+#: tip force, tip moment, energy and d-mode (what the equilibrium search needs of every point, kept
+#: from the tracer's own evaluation: evaluating the points again cost a tenth of the IK)
+_Z, _X, _Y, _FX, _FY, _ML, _EN, _MODE = 0, 3, 4, 5, 6, 7, 8, 9
+N_COLS = 10
+
+
+@njit
+def _store(out, n, chart, z, q) -> int:
+    """Store the point ``z`` (chart ``chart``, evaluated into ``q``) in row ``n`` of ``out``;
+    returns its d-mode."""
+    mode = clamped_mode(chart, z, 1e-9)[0]
+    out[n, 0], out[n, 1], out[n, 2] = z[0], z[1], z[2]
+    out[n, _X], out[n, _Y], out[n, _FX], out[n, _FY] = q[X], q[Y], q[FX], q[FY]
+    out[n, _ML], out[n, _EN], out[n, _MODE] = q[ML], q[EN], mode
+    return mode
 
 
 @njit
@@ -326,10 +345,12 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
     use_ref = ref[0] != 0.0 or ref[1] != 0.0 or ref[2] != 0.0
     h = 0.02
     steps = 0
-    out[n_out, 0], out[n_out, 1], out[n_out, 2] = z[0], z[1], z[2]
+    first = n_out
+    _G(chart, z, code, p0, p1, tgt, q, gr, J)
+    _store(out, n_out, chart, z, q)
     n_out += 1
     while n_out < out.shape[0]:
-        _G(chart, z, code, p0, p1, tgt, q, gr, J)
+        # q, gr, J: evaluated at z (above, or by the corrector's last evaluation at the step)
         wa[0], wa[1], wa[2] = q[FX], q[FY], q[M0]
         t0 = J[0, 1] * J[1, 2] - J[0, 2] * J[1, 1]
         t1 = J[0, 2] * J[1, 0] - J[0, 0] * J[1, 2]
@@ -379,22 +400,21 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
         g, gx, gy, al, ax, ay, adm = condition_eval(code, p0, p1, q[X], q[Y])
         if not adm:
             break
-        where = _in_scope(chart, z, q, max_mode, lam_max, turn_max)
+        mode = _store(out, n_out, chart, z, q)
+        where = _in_scope(q, mode, max_mode, lam_max, turn_max)
         if where != 0:
             if where == 1:
                 limits[0] += 1
             # the first point beyond the scope ends the polyline: its last segment covers the
             # stretch up to the boundary (a rod of the scope next to a d-mode boundary lies on it;
             # the solutions are held to the scope exactly after their refinement)
-            out[n_out, 0], out[n_out, 1], out[n_out, 2] = z[0], z[1], z[2]
             n_out += 1
             break
-        out[n_out, 0], out[n_out, 1], out[n_out, 2] = z[0], z[1], z[2]
         n_out += 1
         if steps > 8:  # closed loop: back at the start
             d = math.sqrt(((z[0] - z0[0]) / s0) ** 2 + ((z[1] - z0[1]) / s1) ** 2 + ((z[2] - z0[2]) / s2) ** 2)
             if d < 1.5 * h:
-                out[n_out, 0], out[n_out, 1], out[n_out, 2] = z0[0], z0[1], z0[2]
+                out[n_out, :] = out[first, :]
                 n_out += 1
                 break
         nxt = _rechart(chart, z, q, sens, znext)
@@ -476,7 +496,7 @@ def _trace_all(Z, charts, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, 
         z = Z[r].copy()
         if not _correct(chart0, z, code, p0, p1, tgt, q, gr, J, 30, 1e-12):
             continue
-        if _in_scope(chart0, z, q, max_mode, lam_max, turn_max) != 0:
+        if _in_scope(q, clamped_mode(chart0, z, 1e-9)[0], max_mode, lam_max, turn_max) != 0:
             continue
         w[0], w[1], w[2] = q[FX], q[FY], q[M0]
         # a taut rod is looked up in the traced-window record (the wrench atlas' cells cannot
@@ -634,7 +654,7 @@ def clamped_leg_curve(mech, i: int, B: NDArray[np.float64], theta: float, max_mo
     # search's force limit
     lam_v = LAMBDA_LIMIT * np.linspace(0.0, 1.0, N_VISIT[0]) ** 1.5
     visited = np.zeros((N_VISIT[0] - 1, N_VISIT[1], N_VISIT[2] - 1), bool)
-    out = np.empty((40 * MAX_POINTS, 3))
+    out = np.empty((40 * MAX_POINTS, N_COLS))
     n_max = 2 * MAX_SWITCHES * len(Z) + 2
     starts = np.zeros(n_max + 1, np.int64)
     line_chart = np.zeros(n_max, np.int64)
@@ -644,9 +664,9 @@ def clamped_leg_curve(mech, i: int, B: NDArray[np.float64], theta: float, max_mo
                          wvisited, out, starts, line_chart, limits)
     branches = []
     for a in range(n_lines):
-        zl = out[starts[a]:starts[a + 1]]
-        if len(zl) >= 2:
-            branches.append(_thin(_branch_data(leg, B, zl, int(line_chart[a])), leg.rod.EI, force_tol))
+        pts = out[starts[a]:starts[a + 1]]
+        if len(pts) >= 2:
+            branches.append(_thin(_branch_data(leg, B, pts, int(line_chart[a])), leg.rod.EI, force_tol))
     return LegCurve(i, leg.actuation, _distinct_stretches(branches, leg), limits=int(limits[0]))
 
 
@@ -772,15 +792,13 @@ def _thin(br: dict[str, NDArray], EI: float, tol: float) -> dict[str, NDArray]:
     return {k: v[keep] for k, v in br.items()}
 
 
-def _branch_data(leg, B: NDArray, zl: NDArray, chart: int) -> dict[str, NDArray]:
-    q = np.empty((len(zl), NQ))
-    g = np.empty((len(zl), NQ, 3))
-    ch = np.full(len(zl), chart, dtype=np.int64)
-    eval_rods(ch, np.ascontiguousarray(zl), q, g)
-    u, alpha, L = leg.actuator.from_tip(B, q[:, X], q[:, Y])
-    u, alpha, L = (np.broadcast_to(np.asarray(v, dtype=float), (len(zl),)) for v in (u, alpha, L))
+def _branch_data(leg, B: NDArray, pts: NDArray, chart: int) -> dict[str, NDArray]:
+    """One polyline's branch dict from its traced points ``pts`` (rows of :func:`_store`)."""
+    n = len(pts)
+    u, alpha, L = leg.actuator.from_tip(B, pts[:, _X], pts[:, _Y])
+    u, alpha, L = (np.broadcast_to(np.asarray(v, dtype=float), (n,)) for v in (u, alpha, L))
     EI = leg.rod.EI
-    force = rotate(q[:, [FX, FY]], alpha) * (EI / L**2)[:, None]
-    modes = np.array([clamped_mode(chart, z, 1e-9)[0] for z in zl])
-    return {"z": zl.copy(), "chart": ch, "input": np.array(u), "force": force, "tip_moment": EI / L * q[:, ML],
-            "length": np.array(L), "mode": modes, "energy": EI / L * q[:, EN]}
+    force = rotate(pts[:, [_FX, _FY]], alpha) * (EI / L**2)[:, None]
+    return {"z": pts[:, :3].copy(), "chart": np.full(n, chart, dtype=np.int64), "input": np.array(u),
+            "force": force, "tip_moment": EI / L * pts[:, _ML], "length": np.array(L),
+            "mode": pts[:, _MODE].astype(np.int64), "energy": EI / L * pts[:, _EN]}
