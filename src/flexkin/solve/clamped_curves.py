@@ -428,8 +428,17 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
 
 @njit
 def _seeds(x, y, th, valid, code, p0, p1, tgt, pad) -> np.ndarray:
-    """Cells whose corners bracket both conditions (the angle modulo 2 pi)."""
+    """Cells whose corners bracket both conditions (the angle modulo 2 pi).  The conditions are
+    evaluated once per node (a node is the corner of eight cells)."""
     nl, npsi, nt = x.shape
+    G = np.empty((nl, npsi, nt))
+    A = np.empty((nl, npsi, nt))
+    for i in range(nl):
+        for j in range(npsi):
+            for k in range(nt):
+                g, gx, gy, al, ax, ay, adm = condition_eval(code, p0, p1, x[i, j, k], y[i, j, k])
+                G[i, j, k] = g
+                A[i, j, k] = al + th[i, j, k] - tgt
     out = []
     for i in range(nl - 1):
         for j in range(npsi):
@@ -438,8 +447,7 @@ def _seeds(x, y, th, valid, code, p0, p1, tgt, pad) -> np.ndarray:
                 lo0 = lo1 = 1e300
                 hi0 = hi1 = -1e300
                 ok = True
-                ref = 0.0
-                first = True
+                ref = A[i, j, k]
                 for di in range(2):
                     for dj in range(2):
                         for dk in range(2):
@@ -447,12 +455,8 @@ def _seeds(x, y, th, valid, code, p0, p1, tgt, pad) -> np.ndarray:
                             ii, kk = i + di, k + dk
                             if not valid[ii, jj, kk]:
                                 ok = False
-                            g, gx, gy, al, ax, ay, adm = condition_eval(code, p0, p1, x[ii, jj, kk], y[ii, jj, kk])
-                            a = al + th[ii, jj, kk] - tgt
-                            if first:
-                                ref = a
-                                first = False
-                            a = ref + wrap_angle(a - ref)
+                            g = G[ii, jj, kk]
+                            a = ref + wrap_angle(A[ii, jj, kk] - ref)
                             lo0, hi0 = min(lo0, g), max(hi0, g)
                             lo1, hi1 = min(lo1, a), max(hi1, a)
                 if not ok:
