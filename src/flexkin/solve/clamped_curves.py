@@ -50,7 +50,7 @@ from ..rod.slots import (
     Y,
 )
 from ..rod.wrench import wrench_eval
-from ..rod.wrench_atlas import get_wrench_atlas, moment_extra, turning_max
+from ..rod.wrench_atlas import get_wrench_atlas, lambda_max, moment_extra, turning_max
 from .conditions import condition_eval
 from .leg_curve import LegCurve
 
@@ -64,6 +64,12 @@ MAX_POINTS = 4000
 #: gives up (on the unit 3-PF, a fifth of the elliptic-grid seeds never converged and took all
 #: of their 30 iterations: a third of the curves' cost)
 STALL = 4
+#: the elliptic grids seed the rods from this fraction of the wrench atlas' ``lambda L`` range on
+#: (:func:`_elliptic_seeds`; seeding every rod of the grids cost a third of the unit 3-PF's IK and
+#: found no solution more on four test cases, even from 0.875 of the range on)
+ELLIPTIC_FROM = 0.6
+#: largest tracing step (in the chart's scaled coordinates, :func:`_metric`)
+H_MAX = 0.05
 #: ``lambda L`` at which a trace stops: the search's numerical force limit (a tip force of
 #: 4096 EI/L^2; the elastica windows resolve taut rods far beyond it, the limit bounds the work
 #: of tracing the curves' tails towards the straight rod under infinite tension)
@@ -422,7 +428,7 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
             for c in range(3):
                 ref[c] = wb[c] - wa[c]
             return n_out, nxt
-        h = min(h * 1.5, 0.05)
+        h = min(h * 1.5, H_MAX)
     return n_out, -1
 
 
@@ -616,12 +622,16 @@ def _elliptic_seeds(max_mode: int, code: int, p0: float, p1: float, tgt: float, 
                     ) -> tuple[NDArray, NDArray]:
     """Seeds near the separatrix, which the wrench atlas cannot resolve (its tip depends on the
     wrench with a condition number like ``exp(lambda L)``): nodes of the cells of the elliptic
-    grids bracketing both conditions, as elastica windows (coordinates and chart)."""
+    grids bracketing both conditions, as elastica windows (coordinates and chart), in the cells
+    whose rods all have ``lambda L >= ELLIPTIC_FROM lambda_max(max_mode)``: below, the wrench
+    atlas seeds the curves, and the traces continue them across the separatrix in the windows."""
     from ..rod.free_atlas import node_windows
+
+    lam_min = ELLIPTIC_FROM * lambda_max(max_mode)
 
     Z, H = [], []
     for lib, (a, b, c, F) in zip((True, False), _elliptic_grids(max_mode, max_winding)):
-        valid = (F[..., 10] <= max_mode) & np.all(np.isfinite(F), axis=-1)
+        valid = (F[..., 10] <= max_mode) & np.all(np.isfinite(F), axis=-1) & (F[..., 9] >= lam_min)
         cells = _seeds(F[..., 0], F[..., 1], F[..., 4], valid, code, p0, p1, tgt, 0.25)
         if not len(cells):
             continue
