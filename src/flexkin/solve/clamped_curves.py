@@ -32,7 +32,7 @@ from ..core.geometry2d_kernels import wrap_angle
 from ..core.jit import njit
 from ..rod.elastica import SENS_WINDOW, SENS_WRENCH, reduce_window, tip_sensitivity, window_of
 from ..rod.elliptic import complete
-from ..rod.kernels import clamped_mode, eval_rod, eval_rods, project
+from ..rod.kernels import clamped_mode, eval_rod, project
 from ..rod.orbit import modulus
 from ..rod.slots import (
     CHART_LIB,
@@ -50,7 +50,7 @@ from ..rod.slots import (
     Y,
 )
 from ..rod.wrench import wrench_eval
-from ..rod.wrench_atlas import get_wrench_atlas, moment_extra, turning_max
+from ..rod.wrench_atlas import get_wrench_atlas, lambda_max, moment_extra, turning_max
 from .conditions import condition_eval
 from .leg_curve import LegCurve
 
@@ -60,6 +60,16 @@ TWO_PI = 2.0 * math.pi
 #: turning (rad) traced beyond the winding scope, which is applied exactly to refined solutions
 TURN_MARGIN = 0.5
 MAX_POINTS = 4000
+#: Newton iterations without a new smallest residual after which a projection onto the curve
+#: gives up (on the unit 3-PF, a fifth of the elliptic-grid seeds never converged and took all
+#: of their 30 iterations: a third of the curves' cost)
+STALL = 4
+#: the elliptic grids seed the rods from this fraction of the wrench atlas' ``lambda L`` range on
+#: (:func:`_elliptic_seeds`; seeding every rod of the grids cost a third of the unit 3-PF's IK and
+#: found no solution more on four test cases, even from 0.875 of the range on)
+ELLIPTIC_FROM = 0.6
+#: largest tracing step (in the chart's scaled coordinates, :func:`_metric`)
+H_MAX = 0.05
 #: ``lambda L`` at which a trace stops: the search's numerical force limit (a tip force of
 #: 4096 EI/L^2; the elastica windows resolve taut rods far beyond it, the limit bounds the work
 #: of tracing the curves' tails towards the straight rod under infinite tension)
@@ -86,13 +96,24 @@ def _G(chart, z, code, p0, p1, tgt, q, gr, J):
 
 @njit
 def _correct(chart, z, code, p0, p1, tgt, q, gr, J, iters, tol) -> bool:
-    """Minimum-norm Newton onto the curve (in place); True when it converged."""
+    """Minimum-norm Newton onto the curve (in place); True when it converged.  An iteration
+    that has not reduced the residual below its best for :data:`STALL` iterations has stalled
+    (cycling or diverging, as a seed far from the curve does) and gives up."""
+    best = 1e300
+    since = 0
     for _ in range(iters):
         g0, g1, adm = _G(chart, z, code, p0, p1, tgt, q, gr, J)
         if not (g0 == g0 and g1 == g1):
             return False
-        if max(abs(g0), abs(g1)) < tol:
+        r = max(abs(g0), abs(g1))
+        if r < tol:
             return True
+        if r < best:
+            best, since = r, 0
+        else:
+            since += 1
+            if since >= STALL:
+                return False
         a = J[0, 0] * J[0, 0] + J[0, 1] * J[0, 1] + J[0, 2] * J[0, 2]
         b = J[0, 0] * J[1, 0] + J[0, 1] * J[1, 1] + J[0, 2] * J[1, 2]
         d = J[1, 0] * J[1, 0] + J[1, 1] * J[1, 1] + J[1, 2] * J[1, 2]
@@ -279,14 +300,33 @@ def _near_traced_window(chart, z, wvisited) -> bool:
 
 
 @njit
-def _in_scope(chart, z, q, max_mode, lam_max, turn_max) -> int:
-    """0 if the rod ``z`` (evaluated into ``q``) is searched; 1 if its ``lambda L`` is beyond the
-    search's numerical limit ``lam_max``; 2 if it is outside the scope (turning or d-mode)."""
+def _in_scope(q, mode, max_mode, lam_max, turn_max) -> int:
+    """0 if the rod evaluated into ``q`` (of d-mode ``mode``) is searched; 1 if its ``lambda L``
+    is beyond the search's numerical limit ``lam_max``; 2 if it is outside the scope (turning or
+    d-mode)."""
     if q[PHI] > lam_max:
         return 1
     if abs(q[TH]) > turn_max + 1e-9:
         return 2
-    return 0 if clamped_mode(chart, z, 1e-9)[0] <= max_mode else 2
+    return 0 if mode <= max_mode else 2
+
+
+#: columns of a traced point (:func:`_store`): the chart coordinates, then the unit rod's tip,
+#: tip force, tip moment, energy and d-mode (what the equilibrium search needs of every point, kept
+#: from the tracer's own evaluation: evaluating the points again cost a tenth of the IK)
+_Z, _X, _Y, _FX, _FY, _ML, _EN, _MODE = 0, 3, 4, 5, 6, 7, 8, 9
+N_COLS = 10
+
+
+@njit
+def _store(out, n, chart, z, q) -> int:
+    """Store the point ``z`` (chart ``chart``, evaluated into ``q``) in row ``n`` of ``out``;
+    returns its d-mode."""
+    mode = clamped_mode(chart, z, 1e-9)[0]
+    out[n, 0], out[n, 1], out[n, 2] = z[0], z[1], z[2]
+    out[n, _X], out[n, _Y], out[n, _FX], out[n, _FY] = q[X], q[Y], q[FX], q[FY]
+    out[n, _ML], out[n, _EN], out[n, _MODE] = q[ML], q[EN], mode
+    return mode
 
 
 @njit
@@ -311,10 +351,12 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
     use_ref = ref[0] != 0.0 or ref[1] != 0.0 or ref[2] != 0.0
     h = 0.02
     steps = 0
-    out[n_out, 0], out[n_out, 1], out[n_out, 2] = z[0], z[1], z[2]
+    first = n_out
+    _G(chart, z, code, p0, p1, tgt, q, gr, J)
+    _store(out, n_out, chart, z, q)
     n_out += 1
     while n_out < out.shape[0]:
-        _G(chart, z, code, p0, p1, tgt, q, gr, J)
+        # q, gr, J: evaluated at z (above, or by the corrector's last evaluation at the step)
         wa[0], wa[1], wa[2] = q[FX], q[FY], q[M0]
         t0 = J[0, 1] * J[1, 2] - J[0, 2] * J[1, 1]
         t1 = J[0, 2] * J[1, 0] - J[0, 0] * J[1, 2]
@@ -364,22 +406,21 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
         g, gx, gy, al, ax, ay, adm = condition_eval(code, p0, p1, q[X], q[Y])
         if not adm:
             break
-        where = _in_scope(chart, z, q, max_mode, lam_max, turn_max)
+        mode = _store(out, n_out, chart, z, q)
+        where = _in_scope(q, mode, max_mode, lam_max, turn_max)
         if where != 0:
             if where == 1:
                 limits[0] += 1
             # the first point beyond the scope ends the polyline: its last segment covers the
             # stretch up to the boundary (a rod of the scope next to a d-mode boundary lies on it;
             # the solutions are held to the scope exactly after their refinement)
-            out[n_out, 0], out[n_out, 1], out[n_out, 2] = z[0], z[1], z[2]
             n_out += 1
             break
-        out[n_out, 0], out[n_out, 1], out[n_out, 2] = z[0], z[1], z[2]
         n_out += 1
         if steps > 8:  # closed loop: back at the start
             d = math.sqrt(((z[0] - z0[0]) / s0) ** 2 + ((z[1] - z0[1]) / s1) ** 2 + ((z[2] - z0[2]) / s2) ** 2)
             if d < 1.5 * h:
-                out[n_out, 0], out[n_out, 1], out[n_out, 2] = z0[0], z0[1], z0[2]
+                out[n_out, :] = out[first, :]
                 n_out += 1
                 break
         nxt = _rechart(chart, z, q, sens, znext)
@@ -387,14 +428,23 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
             for c in range(3):
                 ref[c] = wb[c] - wa[c]
             return n_out, nxt
-        h = min(h * 1.5, 0.05)
+        h = min(h * 1.5, H_MAX)
     return n_out, -1
 
 
 @njit
 def _seeds(x, y, th, valid, code, p0, p1, tgt, pad) -> np.ndarray:
-    """Cells whose corners bracket both conditions (the angle modulo 2 pi)."""
+    """Cells whose corners bracket both conditions (the angle modulo 2 pi).  The conditions are
+    evaluated once per node (a node is the corner of eight cells)."""
     nl, npsi, nt = x.shape
+    G = np.empty((nl, npsi, nt))
+    A = np.empty((nl, npsi, nt))
+    for i in range(nl):
+        for j in range(npsi):
+            for k in range(nt):
+                g, gx, gy, al, ax, ay, adm = condition_eval(code, p0, p1, x[i, j, k], y[i, j, k])
+                G[i, j, k] = g
+                A[i, j, k] = al + th[i, j, k] - tgt
     out = []
     for i in range(nl - 1):
         for j in range(npsi):
@@ -403,8 +453,7 @@ def _seeds(x, y, th, valid, code, p0, p1, tgt, pad) -> np.ndarray:
                 lo0 = lo1 = 1e300
                 hi0 = hi1 = -1e300
                 ok = True
-                ref = 0.0
-                first = True
+                ref = A[i, j, k]
                 for di in range(2):
                     for dj in range(2):
                         for dk in range(2):
@@ -412,12 +461,8 @@ def _seeds(x, y, th, valid, code, p0, p1, tgt, pad) -> np.ndarray:
                             ii, kk = i + di, k + dk
                             if not valid[ii, jj, kk]:
                                 ok = False
-                            g, gx, gy, al, ax, ay, adm = condition_eval(code, p0, p1, x[ii, jj, kk], y[ii, jj, kk])
-                            a = al + th[ii, jj, kk] - tgt
-                            if first:
-                                ref = a
-                                first = False
-                            a = ref + wrap_angle(a - ref)
+                            g = G[ii, jj, kk]
+                            a = ref + wrap_angle(A[ii, jj, kk] - ref)
                             lo0, hi0 = min(lo0, g), max(hi0, g)
                             lo1, hi1 = min(lo1, a), max(hi1, a)
                 if not ok:
@@ -461,7 +506,7 @@ def _trace_all(Z, charts, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, 
         z = Z[r].copy()
         if not _correct(chart0, z, code, p0, p1, tgt, q, gr, J, 30, 1e-12):
             continue
-        if _in_scope(chart0, z, q, max_mode, lam_max, turn_max) != 0:
+        if _in_scope(q, clamped_mode(chart0, z, 1e-9)[0], max_mode, lam_max, turn_max) != 0:
             continue
         w[0], w[1], w[2] = q[FX], q[FY], q[M0]
         # a taut rod is looked up in the traced-window record (the wrench atlas' cells cannot
@@ -577,12 +622,16 @@ def _elliptic_seeds(max_mode: int, code: int, p0: float, p1: float, tgt: float, 
                     ) -> tuple[NDArray, NDArray]:
     """Seeds near the separatrix, which the wrench atlas cannot resolve (its tip depends on the
     wrench with a condition number like ``exp(lambda L)``): nodes of the cells of the elliptic
-    grids bracketing both conditions, as elastica windows (coordinates and chart)."""
+    grids bracketing both conditions, as elastica windows (coordinates and chart), in the cells
+    whose rods all have ``lambda L >= ELLIPTIC_FROM lambda_max(max_mode)``: below, the wrench
+    atlas seeds the curves, and the traces continue them across the separatrix in the windows."""
     from ..rod.free_atlas import node_windows
+
+    lam_min = ELLIPTIC_FROM * lambda_max(max_mode)
 
     Z, H = [], []
     for lib, (a, b, c, F) in zip((True, False), _elliptic_grids(max_mode, max_winding)):
-        valid = (F[..., 10] <= max_mode) & np.all(np.isfinite(F), axis=-1)
+        valid = (F[..., 10] <= max_mode) & np.all(np.isfinite(F), axis=-1) & (F[..., 9] >= lam_min)
         cells = _seeds(F[..., 0], F[..., 1], F[..., 4], valid, code, p0, p1, tgt, 0.25)
         if not len(cells):
             continue
@@ -619,7 +668,7 @@ def clamped_leg_curve(mech, i: int, B: NDArray[np.float64], theta: float, max_mo
     # search's force limit
     lam_v = LAMBDA_LIMIT * np.linspace(0.0, 1.0, N_VISIT[0]) ** 1.5
     visited = np.zeros((N_VISIT[0] - 1, N_VISIT[1], N_VISIT[2] - 1), bool)
-    out = np.empty((40 * MAX_POINTS, 3))
+    out = np.empty((40 * MAX_POINTS, N_COLS))
     n_max = 2 * MAX_SWITCHES * len(Z) + 2
     starts = np.zeros(n_max + 1, np.int64)
     line_chart = np.zeros(n_max, np.int64)
@@ -629,9 +678,9 @@ def clamped_leg_curve(mech, i: int, B: NDArray[np.float64], theta: float, max_mo
                          wvisited, out, starts, line_chart, limits)
     branches = []
     for a in range(n_lines):
-        zl = out[starts[a]:starts[a + 1]]
-        if len(zl) >= 2:
-            branches.append(_thin(_branch_data(leg, B, zl, int(line_chart[a])), leg.rod.EI, force_tol))
+        pts = out[starts[a]:starts[a + 1]]
+        if len(pts) >= 2:
+            branches.append(_thin(_branch_data(leg, B, pts, int(line_chart[a])), leg.rod.EI, force_tol))
     return LegCurve(i, leg.actuation, _distinct_stretches(branches, leg), limits=int(limits[0]))
 
 
@@ -757,15 +806,13 @@ def _thin(br: dict[str, NDArray], EI: float, tol: float) -> dict[str, NDArray]:
     return {k: v[keep] for k, v in br.items()}
 
 
-def _branch_data(leg, B: NDArray, zl: NDArray, chart: int) -> dict[str, NDArray]:
-    q = np.empty((len(zl), NQ))
-    g = np.empty((len(zl), NQ, 3))
-    ch = np.full(len(zl), chart, dtype=np.int64)
-    eval_rods(ch, np.ascontiguousarray(zl), q, g)
-    u, alpha, L = leg.actuator.from_tip(B, q[:, X], q[:, Y])
-    u, alpha, L = (np.broadcast_to(np.asarray(v, dtype=float), (len(zl),)) for v in (u, alpha, L))
+def _branch_data(leg, B: NDArray, pts: NDArray, chart: int) -> dict[str, NDArray]:
+    """One polyline's branch dict from its traced points ``pts`` (rows of :func:`_store`)."""
+    n = len(pts)
+    u, alpha, L = leg.actuator.from_tip(B, pts[:, _X], pts[:, _Y])
+    u, alpha, L = (np.broadcast_to(np.asarray(v, dtype=float), (n,)) for v in (u, alpha, L))
     EI = leg.rod.EI
-    force = rotate(q[:, [FX, FY]], alpha) * (EI / L**2)[:, None]
-    modes = np.array([clamped_mode(chart, z, 1e-9)[0] for z in zl])
-    return {"z": zl.copy(), "chart": ch, "input": np.array(u), "force": force, "tip_moment": EI / L * q[:, ML],
-            "length": np.array(L), "mode": modes, "energy": EI / L * q[:, EN]}
+    force = rotate(pts[:, [_FX, _FY]], alpha) * (EI / L**2)[:, None]
+    return {"z": pts[:, :3].copy(), "chart": np.full(n, chart, dtype=np.int64), "input": np.array(u),
+            "force": force, "tip_moment": EI / L * pts[:, _ML], "length": np.array(L),
+            "mode": pts[:, _MODE].astype(np.int64), "energy": EI / L * pts[:, _EN]}
