@@ -442,14 +442,17 @@ def _seeds(x, y, th, valid, code, p0, p1, tgt, pad) -> np.ndarray:
     for i in range(nl):
         for j in range(npsi):
             for k in range(nt):
-                g, gx, gy, al, ax, ay, adm = condition_eval(code, p0, p1, x[i, j, k], y[i, j, k])
-                G[i, j, k] = g
-                A[i, j, k] = al + th[i, j, k] - tgt
+                if valid[i, j, k]:
+                    g, gx, gy, al, ax, ay, adm = condition_eval(code, p0, p1, x[i, j, k], y[i, j, k])
+                    G[i, j, k] = g
+                    A[i, j, k] = al + th[i, j, k] - tgt
     out = []
     for i in range(nl - 1):
         for j in range(npsi):
             jn = (j + 1) % npsi
             for k in range(nt - 1):
+                if not valid[i, j, k]:
+                    continue
                 lo0 = lo1 = 1e300
                 hi0 = hi1 = -1e300
                 ok = True
