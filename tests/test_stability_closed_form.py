@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import flexkin
@@ -135,6 +135,8 @@ def test_single_rod_closed_form_near_the_separatrix(v, phis, tip, slider):
 @settings(max_examples=60, deadline=None)
 @given(lam=st.floats(0.5, 12.0), psi=st.floats(0.0, 2.0 * math.pi), near=st.floats(-1.0, 1.0),
        kp=st.sampled_from([1e-1, 1e-2, 1e-3, 1e-4, 0.0]), tip=st.sampled_from(["clamped", "free", "pinned"]))
+# found by hypothesis: a rod straight to 1e-45 under tension, whose closed form said index 1
+@example(lam=1.0, psi=1.401298464324817e-45, near=-1.0, kp=0.1, tip="free")
 def test_single_clamped_family_rod_near_the_separatrix(lam, psi, near, kp, tip):
     """Rods of the wrench chart (any base moment: librating, rotating, near the separatrix
     ``|m0| = 2 lambda sin(psi/2)``), their tip wrench a dead load (``free``), the tip held
@@ -173,3 +175,21 @@ def test_margin_has_the_sign_of_the_verdict(file, pose, load):
     m_lazy = np.array([s.stability_margin for s in lazy.solutions])
     m_eager = np.array([s.stability.margin for s in eager.solutions])
     assert np.allclose(m_lazy, m_eager, rtol=1e-9, atol=1e-12)
+
+
+def test_rod_straight_to_1e45_is_judged_by_the_discretisation():
+    """A rod (lambda L = 1) bent by 1e-45 rad, tip free under its dead load: the closed form's tip
+    derivatives are lost there (the Jacobi field's u(1) came out 1e-31, where it cannot fall below
+    about exp(-lambda L)), so ``rod_stability`` takes the discretised verdict (stable: below the
+    cantilever's critical load in any direction), where the closed form once said index 1."""
+    from flexkin.analysis.stability import rod_stability
+    from flexkin.rod.kernels import NQ, eval_rod
+
+    psi = 1.401298464324817e-45
+    z = np.array([math.cos(psi), math.sin(psi), 0.9 * 2.0 * math.sin(0.5 * psi)])
+    q = np.empty(NQ)
+    eval_rod(CHART_WRENCH, z, q, np.empty((NQ, 3)))
+    rod = RodState.from_unit(q, CHART_WRENCH, z, 1.0, 1.0, (0.0, 0.0), 0.0, 1, "clamped")
+    assert _rod_closed_form(rod, "free", np.zeros(2))[0] == -1
+    st = rod_stability(rod, "free")
+    assert st.stable is True and st.index == 0 and st.margin > 3.0 * st.resolution

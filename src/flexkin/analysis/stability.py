@@ -162,8 +162,9 @@ K2_MIN = 1e-12
 #: this many times its propagated error bound
 GAP_SAFETY = 10.0
 #: why the closed form was not accepted (bits of :attr:`StabilityArrays.flags`)
-F_STRAIGHT, F_NONFINITE, F_GAP, F_ENDS, F_DISAGREE = 1, 2, 4, 8, 16
+F_STRAIGHT, F_NONFINITE, F_GAP, F_ENDS, F_DISAGREE, F_LOST = 1, 2, 4, 8, 16, 32
 _WHY = {F_STRAIGHT: "a rod straight under compression", F_NONFINITE: "non-finite rod derivatives",
+        F_LOST: "rod derivatives lost to round-off (a rod straight to ~1e-45)",
         F_GAP: "the second variation is nearly singular", F_ENDS: "a clamped rod with inflections at both ends",
         F_DISAGREE: "the closed form and the discretisation disagree"}
 #: methods (:attr:`StabilityArrays.method`)
@@ -196,6 +197,11 @@ def rod_terms(a, b, m0, clamped_tip, D, res) -> None:
     up1 = D[3, 2]
     _, c, sh, R = _half_angles(a, b)
     lam = math.sqrt(R)
+    # the Jacobi field u = d theta / d m0 starts at (u, u') = (0, 1) and (lambda u, u') grows or
+    # shrinks at most like exp(+-lambda): far below that at s = 1, the closed-form derivatives
+    # were lost (a rod bent by ~1e-45 under tension gave u(1) ~ 1e-31 and a wrong index)
+    if lam * abs(u1) + abs(up1) < 1e-6 * math.exp(-lam):
+        flag |= F_LOST
     idx_cc = 0
     idx_free = 0
     kp2 = 1.0
@@ -822,7 +828,7 @@ def _rod_closed_form(rod: RodState, tip: str, g: NDArray) -> tuple[int, float]:
     res = np.empty(7)
     rod_terms(q[FX], q[FY], q[M0], int(rod.chart) >= CHART_WRENCH, D, res)   # pinned charts: m(1) = 0
     u1, up1 = res[1], res[2]
-    if int(res[5]) & (F_STRAIGHT | F_NONFINITE | F_ENDS):
+    if int(res[5]) & (F_STRAIGHT | F_NONFINITE | F_ENDS | F_LOST):
         return -1, 0.0
     cc = abs(u1) >= abs(up1)
     if tip == "clamped":
