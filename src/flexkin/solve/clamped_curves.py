@@ -420,6 +420,8 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
         if steps > 8:  # closed loop: back at the start
             d = math.sqrt(((z[0] - z0[0]) / s0) ** 2 + ((z[1] - z0[1]) / s1) ** 2 + ((z[2] - z0[2]) / s2) ** 2)
             if d < 1.5 * h:
+                if n_out == out.shape[0]:  # no room for the closing point
+                    break
                 out[n_out, :] = out[first, :]
                 n_out += 1
                 break
