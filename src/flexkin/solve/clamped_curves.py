@@ -300,21 +300,24 @@ def _near_traced_window(chart, z, wvisited) -> bool:
 
 
 @njit
-def _in_scope(q, mode, max_mode, lam_max, turn_max) -> int:
-    """0 if the rod evaluated into ``q`` (of d-mode ``mode``) is searched; 1 if its ``lambda L``
-    is beyond the search's numerical limit ``lam_max``; 2 if it is outside the scope (turning or
-    d-mode)."""
+def _in_scope(chart, z, q, mode, max_mode, lam_max, turn_max) -> int:
+    """0 if the rod ``z`` (chart ``chart``, evaluated into ``q``) is searched; 1 if its
+    ``lambda L`` is beyond the search's numerical limit ``lam_max``; 2 if it is outside the scope
+    (turning or d-mode).  ``mode`` is its d-mode when known, else negative (computed only when
+    the cheaper tests pass)."""
     if q[PHI] > lam_max:
         return 1
     if abs(q[TH]) > turn_max + 1e-9:
         return 2
+    if mode < 0:
+        mode = clamped_mode(chart, z, 1e-9)[0]
     return 0 if mode <= max_mode else 2
 
 
-#: columns of a traced point (:func:`_store`): the chart coordinates, then the unit rod's tip,
-#: tip force, tip moment, energy and d-mode (what the equilibrium search needs of every point, kept
-#: from the tracer's own evaluation: evaluating the points again cost a tenth of the IK)
-_Z, _X, _Y, _FX, _FY, _ML, _EN, _MODE = 0, 3, 4, 5, 6, 7, 8, 9
+#: columns of a traced point (:func:`_store`): the chart coordinates (0-2), then the unit rod's
+#: tip, tip force, tip moment, energy and d-mode (what the equilibrium search needs of every point,
+#: kept from the tracer's own evaluation: evaluating the points again cost a tenth of the IK)
+_X, _Y, _FX, _FY, _ML, _EN, _MODE = 3, 4, 5, 6, 7, 8, 9
 N_COLS = 10
 
 
@@ -407,7 +410,7 @@ def _trace_one(chart, z0, direction, ref, code, p0, p1, tgt, max_mode, mext, lam
         if not adm:
             break
         mode = _store(out, n_out, chart, z, q)
-        where = _in_scope(q, mode, max_mode, lam_max, turn_max)
+        where = _in_scope(chart, z, q, mode, max_mode, lam_max, turn_max)
         if where != 0:
             if where == 1:
                 limits[0] += 1
@@ -439,8 +442,8 @@ def _seeds(x, y, th, valid, code, p0, p1, tgt, pad) -> np.ndarray:
     """Cells whose corners bracket both conditions (the angle modulo 2 pi).  The conditions are
     evaluated once per node (a node is the corner of eight cells)."""
     nl, npsi, nt = x.shape
-    G = np.empty((nl, npsi, nt))
-    A = np.empty((nl, npsi, nt))
+    G = np.zeros((nl, npsi, nt))  # (out-of-scope nodes: not evaluated, their cells not kept)
+    A = np.zeros((nl, npsi, nt))
     for i in range(nl):
         for j in range(npsi):
             for k in range(nt):
@@ -511,7 +514,7 @@ def _trace_all(Z, charts, code, p0, p1, tgt, max_mode, mext, lam_max, turn_max, 
         z = Z[r].copy()
         if not _correct(chart0, z, code, p0, p1, tgt, q, gr, J, 30, 1e-12):
             continue
-        if _in_scope(q, clamped_mode(chart0, z, 1e-9)[0], max_mode, lam_max, turn_max) != 0:
+        if _in_scope(chart0, z, q, -1, max_mode, lam_max, turn_max) != 0:
             continue
         w[0], w[1], w[2] = q[FX], q[FY], q[M0]
         # a taut rod is looked up in the traced-window record (the wrench atlas' cells cannot
