@@ -411,7 +411,9 @@ def refine(system: System, mech, X: NDArray, charts: NDArray, load: NDArray, max
     x, ch, resid = res.x[good], res.charts[good], res.residual[good]
     if np.any(system.clamped):  # the traced curves' chords (module docstring of near_roots)
         starts = _one_start_per_root(system, X, res.x, good, held)
-        more = near_roots(system, X[starts], charts[starts], res.x[starts], load, held, deadline)
+        # a search for more roots: it leaves the budget's last share for building the solutions
+        more = near_roots(system, X[starts], charts[starts], res.x[starts], load, held,
+                          None if deadline is None else deadline.for_search())
         x, ch, resid = (np.concatenate([a, b]) for a, b in zip((x, ch, resid), more))
     if diag is not None:
         diag["converged"] = int(len(x))
@@ -475,7 +477,8 @@ def near_roots(system: System, X: NDArray, charts: NDArray, roots: NDArray, load
     held : {"pose", "inputs"}
         What the Newton holds fixed.
     deadline : Deadline, optional
-        Looked at between rounds and slices.
+        Looked at between rounds and slices; when it cuts the deflation short it is
+        :attr:`~flexkin.core.budget.Deadline.hit` (the answer is then not complete).
 
     Returns
     -------
