@@ -7,6 +7,16 @@ columns held fixed: the pose for IK, the inputs for FK), with the analytic Jacob
 infinity norm, and the rods' charts projected after every trial step
 (:func:`flexkin.rod.kernels.project`).  Candidates that converge to one root are merged
 after a few iterations so that the work of refining many starts of one root is not repeated.
+
+**Deflation** (Farrell, Birkisson & Funke, SIAM J. Sci. Comput. 37 (2015) A2026, Eq. 2.4): a
+candidate may be given roots it must not converge to again.  Newton then solves
+``G(x) = M(x) F(x) = 0`` with ``M(x) = prod_r (1 / |x - r|^2 + 1)`` (distances in the solved
+columns divided by their step caps), which has the roots of ``F`` except the deflated ones.  Its
+Newton step is the plain one rescaled, ``d_G = d / (1 - grad(log M) . d)`` (Sherman-Morrison on
+``J_G = M J + F grad(M)^T``), so it costs no more than a plain step; the line search is on
+``M |F|``, convergence on ``|F|``.  From the start that led to one root, a deflated Newton finds
+the root's near neighbours: the two equilibria of a near-fold pair, which one chord of the
+geometric-condition curves cannot tell apart.
 """
 
 from __future__ import annotations
@@ -74,9 +84,32 @@ def _project_all(X: np.ndarray, charts: np.ndarray, rod_col: np.ndarray) -> None
 
 
 @njit(cache=True)
+def _deflation(x, roots, n_roots, cols, cap, grad) -> float:
+    """The deflation factor ``M(x)`` of the first ``n_roots`` of ``roots`` (module docstring) and
+    ``grad(log M)`` over the solved columns (into ``grad``)."""
+    m = 1.0
+    for c in range(cols.shape[0]):
+        grad[c] = 0.0
+    for j in range(n_roots):
+        d2 = 0.0
+        for c in range(cols.shape[0]):
+            e = (x[cols[c]] - roots[j, cols[c]]) / cap[c]
+            d2 += e * e
+        if not d2 > 1e-300:
+            return np.inf
+        f = 1.0 / d2 + 1.0
+        m *= f
+        for c in range(cols.shape[0]):  # d log(1/d2 + 1) = -2 e / (d2^2 f) / cap
+            grad[c] -= 2.0 * (x[cols[c]] - roots[j, cols[c]]) / (cap[c] * cap[c] * d2 * d2 * f)
+    return m
+
+
+@njit(cache=True)
 def newton_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_ref,
-                  X, charts, load, cols, cap, tol, max_iter, active, norm_out, iters_out) -> None:
-    """Damped Newton on the rows of ``X`` flagged ``active`` (in place); see the module docstring."""
+                  X, charts, load, cols, cap, tol, max_iter, active, norm_out, iters_out,
+                  roots, n_roots) -> None:
+    """Damped Newton on the rows of ``X`` flagged ``active`` (in place), row ``k`` deflated by
+    ``roots[k, :n_roots[k]]`` (full unknown vectors); see the module docstring."""
     n, nu = X.shape
     ne = nu - 3
     p = cols.shape[0]
@@ -91,13 +124,17 @@ def newton_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref,
     xt = np.empty(nu)
     q = np.empty((3, NQ))
     g = np.empty((3, NQ, 3))
+    grad = np.empty(p)
+    gt = np.empty(p)
     for k in range(n):
         if not active[k]:
             continue
         x = X[k]
         ch = charts[k]
+        nr = n_roots[k]
         eval_one(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_ref, x, ch, load, r, J, True, q, g)
         nrm = _norm(r)
+        mx = _deflation(x, roots[k], nr, cols, cap, grad) if nr else 1.0
         it = iters_out[k]
         while it < max_iter and nrm > tol:
             for a in range(p):  # the square subsystem (p == number of equations)
@@ -105,6 +142,13 @@ def newton_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref,
                 for c in range(p):
                     A[a, c] = J[a, cols[c]]
             solve_into(A, b, d, work)
+            if nr:  # the deflated step (module docstring)
+                gd = 0.0
+                for c in range(p):
+                    gd += grad[c] * d[c]
+                if 1.0 - gd != 0.0:
+                    for c in range(p):
+                        d[c] /= 1.0 - gd
             s = 1.0
             for c in range(p):
                 if not np.isfinite(d[c]):
@@ -127,10 +171,14 @@ def newton_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref,
                 eval_one(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref, F_ref,
                          xt, ch, load, rt, Jd, False, q, g)
                 nt = _norm(rt)
-                if nt < nrm:
+                mt = _deflation(xt, roots[k], nr, cols, cap, gt) if nr else 1.0
+                if mt * nt < mx * nrm:
                     for c in range(nu):
                         x[c] = xt[c]
                     nrm = nt
+                    mx = mt
+                    for c in range(p):
+                        grad[c] = gt[c]
                     improved = True
                     break
                 alpha *= 0.5
@@ -145,7 +193,7 @@ def newton_kernel(c0, c1, EI, attach, joint, tip_angle, rod_col, tip_row, L_ref,
 
 def newton(system: System, X: NDArray, charts: NDArray, load: NDArray, fixed: str, *, tol: float = 1e-13,
            max_iter: int = 40, cap: NDArray | None = None, merge_after: int | None = 4,
-           merge_tol: float = 1e-6) -> NewtonResult:
+           merge_tol: float = 1e-6, deflate: tuple[NDArray, NDArray] | None = None) -> NewtonResult:
     """Refine candidates ``X`` (n, n_unknowns) with the columns of ``fixed`` (``"pose"`` or
     ``"inputs"``) held.
 
@@ -169,6 +217,10 @@ def newton(system: System, X: NDArray, charts: NDArray, load: NDArray, fixed: st
     merge_after : int or None
         After this many iterations, candidates whose iterates coincide to ``merge_tol`` are
         merged (all but one stop, reported unconverged).
+    deflate : (roots, counts), optional
+        Roots each candidate must not converge to again: ``roots`` (n, R, n_unknowns) and
+        ``counts`` (n,), candidate ``k`` deflated by ``roots[k, :counts[k]]`` (module
+        docstring).  Default: none.
     """
     lay = system.layout
     X = np.array(np.atleast_2d(X), dtype=float)
@@ -181,9 +233,14 @@ def newton(system: System, X: NDArray, charts: NDArray, load: NDArray, fixed: st
     norm = np.full(n, np.inf)
     iters = np.zeros(n, np.int64)
     active = np.ones(n, bool)
+    if deflate is None:
+        roots, counts = np.zeros((n, 0, lay.n_unknowns)), np.zeros(n, np.int64)
+    else:
+        roots = np.ascontiguousarray(deflate[0], dtype=float)
+        counts = np.ascontiguousarray(deflate[1], dtype=np.int64)
     args = system.args() + (X, charts, np.asarray(load, dtype=float), cols, np.asarray(cap, dtype=float), tol)
     if merge_after is not None and n > 1:
-        newton_kernel(*args, merge_after, active, norm, iters)
+        newton_kernel(*args, merge_after, active, norm, iters, roots, counts)
         pending = np.flatnonzero(norm > tol)
         if pending.size > 1:
             keys = np.round(X[pending][:, cols] / merge_tol)
@@ -197,7 +254,7 @@ def newton(system: System, X: NDArray, charts: NDArray, load: NDArray, fixed: st
         else:
             active[:] = False
             active[pending] = True
-    newton_kernel(*args, max_iter, active, norm, iters)
+    newton_kernel(*args, max_iter, active, norm, iters, roots, counts)
     return NewtonResult(X, charts, norm, norm <= tol, iters)
 
 

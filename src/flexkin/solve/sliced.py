@@ -23,7 +23,8 @@ NEWTON_COST = 6e-4
 
 
 def newton_within(system: System, X: NDArray, charts: NDArray, load: NDArray, fixed: str,
-                  deadline: Deadline | None = None, rate: Rate | None = None) -> NewtonResult:
+                  deadline: Deadline | None = None, rate: Rate | None = None,
+                  deflate: tuple[NDArray, NDArray] | None = None, max_iter: int = 40) -> NewtonResult:
     """:func:`~flexkin.solve.corrector.newton` on the candidates ``X`` in slices while the
     ``deadline`` allows; returns the result for the first candidates, those refined (all of
     them without a budget; fewer, with :attr:`Deadline.hit` set, when the time ran out).
@@ -44,6 +45,11 @@ def newton_within(system: System, X: NDArray, charts: NDArray, load: NDArray, fi
         The time budget (default: none).
     rate : Rate, optional
         Measured seconds per candidate (updated here).
+    deflate : (roots, counts), optional
+        Roots each candidate must not converge to again (see
+        :func:`~flexkin.solve.corrector.newton`).
+    max_iter : int
+        Newton iterations per candidate.
 
     Returns
     -------
@@ -52,12 +58,13 @@ def newton_within(system: System, X: NDArray, charts: NDArray, load: NDArray, fi
     """
     dl = deadline if deadline is not None else Deadline()
     if not dl.limited or len(X) == 0:
-        return newton(system, X, charts, load, fixed)
+        return newton(system, X, charts, load, fixed, deflate=deflate, max_iter=max_iter)
     rate = rate if rate is not None else Rate(NEWTON_COST)
     parts: list[NewtonResult] = []
     for lo, hi in timed_slices(len(X), dl, rate):
         t = time.perf_counter()
-        parts.append(newton(system, X[lo:hi], charts[lo:hi], load, fixed))
+        part = None if deflate is None else (deflate[0][lo:hi], deflate[1][lo:hi])
+        parts.append(newton(system, X[lo:hi], charts[lo:hi], load, fixed, deflate=part, max_iter=max_iter))
         rate.add(hi - lo, time.perf_counter() - t)
     if not parts:
         n_u = np.asarray(X).shape[1]
