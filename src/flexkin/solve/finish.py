@@ -441,7 +441,7 @@ def _one_start_per_root(system: System, X: NDArray, R: NDArray, good: NDArray, h
 #: rounds of deflated Newton from each start that converged (:func:`near_roots`)
 DEFLATION_ROUNDS = 2
 #: iterations of one deflated Newton
-DEFLATED_ITER = 15
+DEFLATED_ITER = 25
 
 
 def near_roots(system: System, X: NDArray, charts: NDArray, roots: NDArray, load: NDArray, held: str,
@@ -459,8 +459,9 @@ def near_roots(system: System, X: NDArray, charts: NDArray, roots: NDArray, load
     in the rods' coordinates, which grow to tens of EI/L^2 in the tip force of a taut rod (the
     unit 3-PF at (0, 0, 0) lost 6 equilibria in clusters without it), while a pinned leg's
     polylines are bisected to a relative force resolution (:mod:`flexkin.solve.pinned_curves`).
-    Each deflated Newton stops after :data:`DEFLATED_ITER` iterations (more found nothing more
-    on four clamped cases and cost a tenth of the IK).
+    Each deflated Newton stops after :data:`DEFLATED_ITER` iterations (the six equilibria it adds
+    at the unit 3-PF's (0, 0, 0) take up to 15; 40 found nothing more on four clamped cases and
+    cost half as much again).
 
     Parameters
     ----------
